@@ -38,14 +38,6 @@ Vec3 random_unit(Rng& rng) {
   }
 }
 
-/// SplitMix64 finaliser: derives independent seeds for sub-steps from one seed.
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
 /// `count` distinct values of [0, n) in draw order (partial Fisher-Yates).
 std::vector<int> choose_distinct(Rng& rng, int n, int count) {
   std::vector<int> all(static_cast<std::size_t>(n));
@@ -868,8 +860,19 @@ PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t see
   std::sort(chosen.begin(), chosen.end());
   PolygonSoup soup = mesh;
   for (std::size_t i = 0; i < chosen.size(); ++i)
-    soup = inject(soup, static_cast<DefectKind>(chosen[i]), mix(seed + 1 + i), DefectParams{}, log);
+    soup = inject(soup, static_cast<DefectKind>(chosen[i]), derive_seed(seed, 1 + i), DefectParams{}, log);
   return soup;
+}
+
+std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t step) {
+  // SplitMix64 (Steele, Lea, Flood 2014) applied twice: once to the seed, once with the step.
+  auto mix = [](std::uint64_t x) {
+    x += 0x9E3779B97F4A7C15ULL;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+    return x ^ (x >> 31);
+  };
+  return mix(mix(seed) ^ step);
 }
 
 TriangleMesh soup_triangles(const PolygonSoup& soup) {

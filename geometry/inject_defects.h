@@ -95,10 +95,14 @@ PolygonSoup inject(const TriangleMesh& mesh, DefectKind kind, std::uint64_t seed
                    const DefectParams& params = {}, DefectLog* log = nullptr);
 
 /// Injects `count` distinct kinds drawn by `seed` from all kinds except nan_coordinates, applied in
-/// enum order with default params, each from its own seed derived from `seed`. count in [0, 15];
+/// enum order with default params, each from derive_seed(seed, 1 + its position). count in [0, 15];
 /// throws OptionError otherwise, and whatever inject throws.
 PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t seed, int count,
                                       DefectLog* log = nullptr);
+
+/// An independent seed for sub-step `step` of a run seeded with `seed` (SplitMix64 of both), so
+/// that chained injections do not share random streams.
+std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t step);
 
 /// Converts a soup whose polygons are all triangles back to a TriangleMesh (same points, same
 /// order). Throws TopologyError naming the first polygon that is not a triangle.

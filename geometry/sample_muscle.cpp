@@ -19,14 +19,6 @@ constexpr double kPi = 3.14159265358979323846;
   throw OptionError(std::string("sample ") + field + " = " + buffer + " is invalid: " + rule);
 }
 
-std::uint64_t derive(std::uint64_t seed, std::uint64_t step) {
-  // SplitMix64 of (seed, step): independent seeds for each defect kind.
-  std::uint64_t x = seed * 0x9E3779B97F4A7C15ULL + step + 0x632BE59BD9B4E019ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
 }  // namespace
 
 void SampleOptions::validate() const {
@@ -90,17 +82,17 @@ PolygonSoup make_sample(const SampleOptions& options, DefectLog* log) {
     DefectParams p;
     p.count = options.holes;
     p.patch_faces = options.hole_faces;
-    soup = inject(soup, DefectKind::holes, derive(seed, 1), p, log);
+    soup = inject(soup, DefectKind::holes, derive_seed(seed, 1), p, log);
   }
   DefectParams flip;
   flip.patch_faces = options.flipped_faces;
-  soup = inject(soup, DefectKind::flipped_patch, derive(seed, 2), flip, log);
-  soup = inject(soup, DefectKind::pinched_vertex, derive(seed, 3), DefectParams{}, log);
-  soup = inject(soup, DefectKind::stray_component, derive(seed, 4), DefectParams{}, log);
+  soup = inject(soup, DefectKind::flipped_patch, derive_seed(seed, 2), flip, log);
+  soup = inject(soup, DefectKind::pinched_vertex, derive_seed(seed, 3), DefectParams{}, log);
+  soup = inject(soup, DefectKind::stray_component, derive_seed(seed, 4), DefectParams{}, log);
   if (options.duplicate_fraction > 0) {
     DefectParams dup;
     dup.fraction = options.duplicate_fraction;
-    soup = inject(soup, DefectKind::duplicate_vertices, derive(seed, 5), dup, log);
+    soup = inject(soup, DefectKind::duplicate_vertices, derive_seed(seed, 5), dup, log);
   }
   return soup;
 }

@@ -3,16 +3,22 @@
 
 #include "geometry/errors.h"
 #include "geometry/inject_defects.h"
+#include "geometry/mesh_io.h"
 #include "geometry/mesh_stats.h"
 #include "geometry/primitives.h"
 #include "geometry/sample_muscle.h"
+#include "test_common.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cstring>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <functional>
 #include <limits>
 #include <map>
@@ -476,4 +482,51 @@ TEST_CASE("defective sample has every advertised defect and is reproducible", "[
   CHECK(same_soup(s, make_sample(options)));
   options.seed = 2;
   CHECK_FALSE(same_soup(s, make_sample(options)));
+}
+
+TEST_CASE("fascicle sample writes the same soup make_sample builds, and its log", "[geometry][sample][cli]") {
+  const std::string program = fascicle::test::program();
+  REQUIRE(std::filesystem::exists(program));
+  fascicle::test::TempDir dir;
+  const std::string out = dir.file("s.off"), again = dir.file("again.off"), log = dir.file("s.json");
+  REQUIRE(fascicle::test::run_command(program + " -q sample -o " + out + " --seed 5 --log " + log) == 0);
+  SampleOptions options;
+  options.seed = 5;
+  const PolygonSoup expected = make_sample(options);
+  const PolygonSoup read = read_polygon_soup(out);
+  CHECK(same_soup(read, expected));  // OFF text keeps every bit (max_digits10)
+  std::ifstream in(log);
+  const nlohmann::json json = nlohmann::json::parse(in);
+  CHECK(json.at("seed") == 5);
+  CHECK(json.at("clean") == false);
+  REQUIRE(json.at("defects").size() == 5);
+  CHECK(json.at("defects")[0].at("kind") == "holes");
+  CHECK(json.at("faces") == expected.polygons.size());
+  // Same seed, same bytes.
+  REQUIRE(fascicle::test::run_command(program + " -q sample -o " + again + " --seed 5") == 0);
+  std::ifstream a(out), b(again);
+  const std::string text_a((std::istreambuf_iterator<char>(a)), {}), text_b((std::istreambuf_iterator<char>(b)), {});
+  CHECK(text_a == text_b);
+
+  const std::string clean = dir.file("clean.off");
+  REQUIRE(fascicle::test::run_command(program + " -q sample --clean -o " + clean) == 0);
+  const PolygonSoup clean_soup = read_polygon_soup(clean);
+  CHECK(closed_and_oriented(clean_soup));
+  CHECK(euler_characteristic(as_mesh(clean_soup)) == 2);
+
+  const std::string torus = dir.file("torus.off");
+  REQUIRE(fascicle::test::run_command(program + " -q sample --kind torus --inject holes -o " + torus) == 0);
+  CHECK(count_edges(read_polygon_soup(torus)).boundary > 0);
+
+  // Bad options: exit codes of geometry/errors.h, and no output left behind.
+  const std::string none = dir.file("none.off");
+  CHECK(fascicle::test::run_command(program + " -q sample --clean --inject holes -o " + none + " 2>/dev/null") ==
+        exit_code(ErrorCode::invalid_option));
+  CHECK(fascicle::test::run_command(program + " -q sample --inject nan_coordinates -o " + none + " 2>/dev/null") ==
+        exit_code(ErrorCode::invalid_option));
+  CHECK(fascicle::test::run_command(program + " -q sample --kind tetrahedron --inject handle -o " + none +
+                                    " 2>/dev/null") == exit_code(ErrorCode::topology));
+  CHECK(fascicle::test::run_command(program + " -q sample --inject wormhole -o " + none + " 2>/dev/null") ==
+        exit_code(ErrorCode::usage));
+  CHECK_FALSE(std::filesystem::exists(none));
 }
