@@ -58,13 +58,12 @@ PolygonSoup read_off(const std::string& path, std::string_view data, const ReadO
   }
   const std::uint64_t face_count = in.count("face count", false);
   if (!in.at_line_end()) (void)in.count("edge count", true);
-  if (!in.at_line_end())
-    in.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in.token_in_line()) + "' after the counts");
-  in.skip_to_next_line();
-
   // "0 0 0\n" and "0\n" are the shortest vertex and face lines.
   check_declared_count(in, vertex_count, 6, in.size(), "vertices", options);
   check_declared_count(in, face_count, 2, in.size(), "faces", options);
+  if (!in.at_line_end())
+    in.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in.token_in_line()) + "' after the counts");
+  in.skip_to_next_line();
 
   PolygonSoup soup;
   soup.points.reserve(static_cast<std::size_t>(vertex_count));

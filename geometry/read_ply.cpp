@@ -64,10 +64,23 @@ class BodyReader {
   }
 
   /// Reads a list length and checks it against the bytes left (before anything is sized by it).
+  /// Reads a vertex index and checks it against the point count, reporting the index's own
+  /// byte offset (binary) or line (ASCII).
+  /// `allow_restart` lets -1 through (triangle strips).
+  int index(Scalar type, const char* what, std::size_t point_count, bool allow_restart = false) {
+    const std::size_t at = in_.pos();
+    const std::int64_t value = integer(type, what);
+    if (allow_restart && value == -1) return -1;
+    if (value < 0 || static_cast<std::uint64_t>(value) >= point_count)
+      fail_here(at, in_.line(), ErrorCode::index_out_of_range,
+                std::string(what) + " " + std::to_string(value) + " is out of range (" + std::to_string(point_count) + " points)");
+    return static_cast<int>(value);
+  }
+
   std::uint64_t list_length(const Property& p, const char* what) {
     const std::size_t at = in_.pos();
-    const std::size_t line = in_.line();
     const std::int64_t n = integer(p.count_type, what);
+    const std::size_t line = in_.line();  // ASCII: the line of the token just read
     if (n < 0) fail_here(at, line, ErrorCode::malformed, std::string(what) + " is negative (" + std::to_string(n) + ")");
     const std::uint64_t item = binary_ ? scalar_size(p.type) : 2;  // ASCII: a digit and a blank
     if (static_cast<std::uint64_t>(n) > in_.remaining() / item) {
@@ -291,17 +304,17 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
         const std::uint64_t n = reader.list_length(p, "index list length");
         if (is_face) {
           std::vector<int> face(static_cast<std::size_t>(n));
-          for (auto& index : face) index = checked_index(in, reader.integer(p.type, "vertex index"), point_count);
+          for (auto& index : face) index = reader.index(p.type, "vertex index", point_count);
           soup.polygons.push_back(std::move(face));
         } else {
           run.clear();
           for (std::uint64_t k = 0; k < n; ++k) {
-            const std::int64_t index = reader.integer(p.type, "strip index");
+            const int index = reader.index(p.type, "strip index", point_count, true);
             if (index == -1) {  // restart
               append_strip_triangles(run, soup.polygons);
               run.clear();
             } else {
-              run.push_back(checked_index(in, index, point_count));
+              run.push_back(index);
             }
           }
           append_strip_triangles(run, soup.polygons);

@@ -137,6 +137,19 @@ class VtkReader {
     return in_.integer_unchecked(type, true);
   }
 
+  /// Reads a point index, reporting a bad one at its own byte offset (binary) or line (ASCII).
+  int point_index(Scalar type) {
+    const std::size_t at = in_.pos();
+    const std::int64_t value = integer(type, "point index");
+    if (value < 0 || static_cast<std::uint64_t>(value) >= out_.points.size()) {
+      const std::string what = "point index " + std::to_string(value) + " is out of range (" +
+                               std::to_string(out_.points.size()) + " points)";
+      if (binary_) in_.fail_at_byte(at, ErrorCode::index_out_of_range, what);
+      in_.fail(ErrorCode::index_out_of_range, what);
+    }
+    return static_cast<int>(value);
+  }
+
   void read_points() {
     const std::uint64_t n = in_.count("point count", true);
     const Scalar type = type_in_line(false);
@@ -174,7 +187,7 @@ class VtkReader {
                                              " points, beyond the declared cell array size " + std::to_string(size));
         used += 1 + static_cast<std::uint64_t>(k);
         std::vector<int> cell(static_cast<std::size_t>(k));
-        for (auto& index : cell) index = checked_index(in_, integer(Scalar::i32, "point index"), out_.points.size());
+        for (auto& index : cell) index = point_index(Scalar::i32);
         lists.push_back(std::move(cell));
       }
       if (used != size)
@@ -218,7 +231,7 @@ class VtkReader {
     lists.reserve(offset.empty() ? 0 : offset.size() - 1);
     for (std::size_t c = 0; c + 1 < offset.size(); ++c) {
       std::vector<int> cell(static_cast<std::size_t>(offset[c + 1] - offset[c]));
-      for (auto& index : cell) index = checked_index(in_, integer(type, "point index"), out_.points.size());
+      for (auto& index : cell) index = point_index(type);
       lists.push_back(std::move(cell));
     }
     return lists;
