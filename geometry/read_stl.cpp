@@ -20,7 +20,7 @@ bool iequals(std::string_view a, std::string_view b) {
 }
 
 bool starts_with_solid(std::string_view data) {
-  std::size_t p = 0;
+  std::size_t p = data.substr(0, 3) == "\xEF\xBB\xBF" ? 3 : 0;
   while (p < data.size() && std::isspace(static_cast<unsigned char>(data[p]))) ++p;
   if (data.size() - p < 5 || !iequals(data.substr(p, 5), "solid")) return false;
   return data.size() - p == 5 || std::isspace(static_cast<unsigned char>(data[p + 5]));
@@ -70,6 +70,7 @@ PolygonSoup read_binary_stl(const std::string& path, std::string_view data, cons
 
 PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   const std::uint64_t limit = std::min<std::uint64_t>(options.max_elements, INT_MAX);
   PolygonSoup soup;
   bool in_solid = false, in_facet = false, in_loop = false;

@@ -76,6 +76,7 @@ class VtkReader {
 
  private:
   void read_header() {
+    in_.skip_byte_order_mark();
     const std::string_view first = in_.rest_of_line();
     if (first.substr(0, 2) != "# " || first.find("vtk") == std::string_view::npos ||
         first.find("DataFile") == std::string_view::npos)

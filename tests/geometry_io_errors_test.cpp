@@ -317,6 +317,10 @@ TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors
   require_soup_error(dir.file("m.off"), ErrorCode::malformed, "line 6");
   write_bytes(dir.file("m2.off"), "OFF\n3 1 0\n0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   require_soup_error(dir.file("m2.off"), ErrorCode::malformed, "line 3");
+  write_bytes(dir.file("bin.off"), "OFF BINARY\n");
+  require_soup_error(dir.file("bin.off"), ErrorCode::malformed, "line 1");
+  write_bytes(dir.file("4d.off"), "4OFF\n1 0 0\n0 0 0 1\n");
+  require_soup_error(dir.file("4d.off"), ErrorCode::malformed, "line 1");
   write_bytes(dir.file("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n");
   require_soup_error(dir.file("m.obj"), ErrorCode::malformed, "line 4");
   write_bytes(dir.file("m.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n");

@@ -228,6 +228,20 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
   }
 }
 
+TEST_CASE("a UTF-8 byte order mark does not hide the first statement", "[geometry][io]") {
+  TempDir dir;
+  const std::string bom = "\xEF\xBB\xBF";
+  write_bytes(dir.file("b.obj"), bom + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  CHECK(read_polygon_soup(dir.file("b.obj")).points.size() == 3);
+  write_bytes(dir.file("b.off"), bom + "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  CHECK(read_polygon_soup(dir.file("b.off")).polygons == Polys{{0, 1, 2}});
+  write_bytes(dir.file("b.stl"), bom + "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+                                       "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
+  CHECK(read_polygon_soup(dir.file("b.stl")).polygons == Polys{{0, 1, 2}});
+  write_bytes(dir.file("b.xyz"), bom + "1 2 3\n");
+  CHECK(read_points(dir.file("b.xyz")) == std::vector<Vec3>{Vec3(1, 2, 3)});
+}
+
 // ---------------------------------------------------------------------------------------------
 // OBJ
 
