@@ -556,3 +556,32 @@ TEST_CASE("random choices are pinned: same indices with any standard library", "
   // Seed 2025 draws non_manifold_edge, duplicate_vertices and scale: index choices only.
   CHECK(index_hash(inject_random_combination(cube, 2025, 3)) == 0x54ae571673e323f0ULL);
 }
+
+TEST_CASE("sample options are validated field by field", "[geometry][sample]") {
+  auto message = [](const SampleOptions& o) {
+    try {
+      o.validate();
+    } catch (const OptionError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK(message(SampleOptions{}).empty());
+  SampleOptions o;
+  o.ellipticity = 0;
+  CHECK_THAT(message(o), Catch::Contains("ellipticity"));
+  o = {};
+  o.rings = 2;
+  CHECK_THAT(message(o), Catch::Contains("rings"));
+  o = {};
+  o.tendon_radius = 20;
+  CHECK_THAT(message(o), Catch::Contains("tendon_radius"));
+  o = {};
+  o.duplicate_fraction = 2;
+  CHECK_THAT(message(o), Catch::Contains("duplicate_fraction"));
+  o = {};
+  o.axis_bend = std::nan("");
+  CHECK_THAT(message(o), Catch::Contains("axis_bend"));
+  o.defects = true;
+  CHECK_THROWS_AS(make_sample(o), OptionError);
+}
