@@ -434,6 +434,7 @@ TEST_CASE("random combinations are reproducible and logged", "[geometry][defects
     CHECK(same_soup(a, inject_random_combination(clean, seed, 4)));
   }
   CHECK(same_soup(inject_random_combination(clean, 3, 0), clean));
+  CHECK(same_soup(inject_random_combination(make_icosphere(3, 5.0), 3, 2), inject_random_combination(clean, 3, 2)));
   CHECK_THROWS_AS(inject_random_combination(clean, 3, 16), OptionError);
 }
 
