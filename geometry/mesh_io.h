@@ -34,6 +34,9 @@ struct ReadOptions {
   std::uint64_t max_elements = 100'000'000;
   /// Largest file size read, bytes (default 4 GiB).
   std::uint64_t max_file_bytes = 4ULL << 30;
+
+  /// Throws OptionError naming the field when a limit is 0 (nothing could be read).
+  void validate() const;
 };
 
 /// Format for a path from its extension: off, obj, stl, ply, vtk, txt (thesis).

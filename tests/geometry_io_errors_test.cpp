@@ -319,6 +319,19 @@ TEST_CASE("error too_large: limits from ReadOptions", "[geometry][io][errors]") 
   require_soup_error(dir.file("m.obj"), ErrorCode::too_large, "line 4", small);
 }
 
+TEST_CASE("ReadOptions::validate names the bad field", "[geometry][io][errors]") {
+  TempDir dir;
+  write_bytes(dir.file("t.off"), tetra_off);
+  ReadOptions options;
+  CHECK_NOTHROW(options.validate());
+  options.max_elements = 0;
+  CHECK_THROWS_WITH(read_polygon_soup(dir.file("t.off"), options), Catch::Contains("max_elements"));
+  CHECK_THROWS_AS(read_points(dir.file("t.off"), options), OptionError);
+  options = ReadOptions{};
+  options.max_file_bytes = 0;
+  CHECK_THROWS_WITH(options.validate(), Catch::Contains("max_file_bytes"));
+}
+
 TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors]") {
   TempDir dir;
   write_bytes(dir.file("m.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n");
