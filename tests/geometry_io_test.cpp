@@ -429,6 +429,26 @@ TEST_CASE("VTK 5.1 OFFSETS/CONNECTIVITY cells", "[geometry][io][vtk]") {
   CHECK(read_polygon_soup(dir.file("n.vtk")).polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}});
 }
 
+TEST_CASE("VTK 5.1 binary OFFSETS/CONNECTIVITY with 64-bit indices", "[geometry][io][vtk]") {
+  TempDir dir;
+  std::string s = "# vtk DataFile Version 5.1\nnew\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n";
+  for (int v = 0; v < 4; ++v)
+    for (int c = 0; c < 3; ++c) put<float>(s, static_cast<float>(v == c + 1), true);
+  s += "\nPOLYGONS 3 7\nOFFSETS vtktypeint64\n";
+  for (std::int64_t o : {0, 3, 7}) put<std::int64_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint64\n";
+  for (std::int64_t i : {0, 1, 2, 1, 3, 2, 0}) put<std::int64_t>(s, i, true);
+  s += "\nTRIANGLE_STRIPS 2 4\nOFFSETS vtktypeint32\n";
+  for (std::int32_t o : {0, 4}) put<std::int32_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint32\n";
+  for (std::int32_t i : {0, 1, 2, 3}) put<std::int32_t>(s, i, true);
+  s += "\n";
+  write_bytes(dir.file("n.vtk"), s);
+  const PolygonSoup soup = read_polygon_soup(dir.file("n.vtk"));
+  CHECK(soup.points[3] == Vec3(0, 0, 1));
+  CHECK(soup.polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}, {0, 1, 2}, {2, 1, 3}});
+}
+
 namespace {
 
 /// A binary VTK polydata in the ALBA layout (blank line after the title), big endian.
