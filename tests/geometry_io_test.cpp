@@ -120,6 +120,23 @@ TEST_CASE("writers refuse an unknown extension before writing anything", "[geome
   CHECK(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()) == 0);
 }
 
+TEST_CASE("writers report an unwritable target as IoError and keep an existing file", "[geometry][io]") {
+  TempDir dir;
+  const TriangleMesh mesh = awkward_tetrahedron();
+  try {
+    write_triangle_mesh(dir.file("missing-folder/mesh.off"), mesh);
+    FAIL("no exception");
+  } catch (const IoError& e) {
+    CHECK(e.code() == ErrorCode::output_failed);
+  }
+  const std::string path = dir.file("mesh.obj");
+  write_bytes(path, "old content");
+  TriangleMesh broken = mesh;
+  broken.triangles.push_back({0, 1, 99});  // out of range: refused before anything is written
+  CHECK_THROWS_AS(write_triangle_mesh(path, broken), Error);
+  CHECK(read_bytes(path) == "old content");
+}
+
 TEST_CASE("polylines round-trip through VTK (with cell data) and OBJ", "[geometry][io]") {
   TempDir dir;
   Polylines lines;
