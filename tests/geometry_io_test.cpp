@@ -238,6 +238,12 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
     CHECK(s.points == std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)});
     CHECK(s.polygons == Polys{{0, 1, 2}, {0, 2, 3}});
   }
+  SECTION("numbers below the double range read as zero; exponents, signs and no leading digit") {
+    write_bytes(dir.file("u.off"), "OFF\n3 1 0\n1e-400 -1E-999 +.5\n-0.25e+1 1. 7E2\n0 0 0\n3 0 1 2\n");
+    const PolygonSoup s = read_polygon_soup(dir.file("u.off"));
+    CHECK(s.points[0] == Vec3(0, 0, 0.5));
+    CHECK(s.points[1] == Vec3(-2.5, 1, 700));
+  }
   SECTION("no header word; faces with two indices or repeated indices are kept as stored") {
     write_bytes(dir.file("d.off"), "3 3 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n2 0 1\n3 0 0 1\n");
     const PolygonSoup s = read_polygon_soup(dir.file("d.off"));
