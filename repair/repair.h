@@ -45,6 +45,10 @@ struct RepairOptions {
   /// Keep-largest is faithful only when the largest component holds at least this share of the
   /// total area (default 0.75); below it the mesh is in pieces and is wrapped instead.
   double min_largest_share = 0.75;
+  /// Self-intersections are first untangled by local smoothing, accepted only when no vertex
+  /// moves farther than this fraction of the diagonal (default 0.01); otherwise the region is
+  /// cut out and refilled.
+  double untangle_limit = 0.01;
   /// Fill holes with refined and faired patches (default true; false: plain triangulation).
   bool fair_holes = true;
   /// Allow the alpha-wrap fallback (default true). When false, a mesh that local repair cannot

@@ -77,7 +77,8 @@ struct NeedsWrap {
 
 class RepairPipeline {
  public:
-  RepairPipeline(const RepairOptions& options, RepairReport& report) : options_(options), report_(report) {}
+  RepairPipeline(const RepairOptions& options, RepairReport& report, double diagonal)
+      : options_(options), report_(report), diagonal_(diagonal) {}
 
   // Runs `body` as a named step; it returns how many elements it changed.
   void step(const std::string& name, const std::function<long()>& body, const std::string& note = {}) {
@@ -262,6 +263,12 @@ class RepairPipeline {
       report_.steps.push_back({"remove_self_intersections", 0, 0.0, "none found"});
       return;
     }
+    // CT folds are mostly crumpled surface: first untangle them by smoothing the vertices of the
+    // intersecting faces towards their neighbours' centroid (a small, local move), and only where
+    // that fails cut the region out and refill it (PMP::experimental::remove_self_intersections).
+    step("untangle_self_intersections", [&] { return untangle_by_smoothing(mesh); },
+         "vertices smoothed to undo folds");
+    if (!PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh)) return;
     step("remove_self_intersections", [&] {
       std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
       PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
@@ -271,11 +278,59 @@ class RepairPipeline {
       pairs.clear();
       PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
       return before - static_cast<long>(pairs.size());
-    }, "intersecting face pairs resolved");
+    }, "intersecting face pairs resolved by removing and refilling their region");
     if (!CGAL::is_valid_polygon_mesh(mesh) || !CGAL::is_closed(mesh))
       throw NeedsWrap{"removing self-intersections left an open or invalid mesh"};
     if (PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
       throw NeedsWrap{"self-intersections remain after local repair"};
+  }
+
+  // Laplacian smoothing restricted to the neighbourhood of intersecting faces; the neighbourhood
+  // grows by one ring every few rounds. Returns the number of vertices moved (0 when it gave up
+  // and restored the original positions).
+  long untangle_by_smoothing(Mesh& mesh) {
+    constexpr int kRounds = 12;
+    std::vector<std::pair<Mesh::Vertex_index, Point>> original;
+    std::unordered_set<std::uint32_t> moved;
+    for (int round = 0; round < kRounds; ++round) {
+      std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+      PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
+      if (pairs.empty()) break;
+      std::unordered_set<std::uint32_t> region;
+      for (const auto& [f, g] : pairs)
+        for (auto face : {f, g})
+          for (auto v : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) region.insert(v.idx());
+      for (int ring = 0; ring < 1 + round / 4; ++ring) {
+        std::vector<std::uint32_t> grow(region.begin(), region.end());
+        for (auto vi : grow)
+          for (auto w : CGAL::vertices_around_target(mesh.halfedge(Mesh::Vertex_index(vi)), mesh)) region.insert(w.idx());
+      }
+      std::vector<std::pair<Mesh::Vertex_index, Point>> update;
+      for (auto vi : region) {
+        const Mesh::Vertex_index v(vi);
+        double x = 0, y = 0, z = 0;
+        int n = 0;
+        for (auto w : CGAL::vertices_around_target(mesh.halfedge(v), mesh)) {
+          const Point& q = mesh.point(w);
+          x += q.x(), y += q.y(), z += q.z(), ++n;
+        }
+        if (n == 0) continue;
+        const Point& p = mesh.point(v);
+        update.emplace_back(v, Point(0.5 * p.x() + 0.5 * x / n, 0.5 * p.y() + 0.5 * y / n, 0.5 * p.z() + 0.5 * z / n));
+      }
+      for (const auto& [v, p] : update) {
+        if (moved.insert(v.idx()).second) original.emplace_back(v, mesh.point(v));
+        mesh.point(v) = p;
+      }
+    }
+    // Accept only an untangling that stayed local: no vertex moved farther than
+    // untangle_limit of the diagonal (a deep fold is better cut out than smeared).
+    double farthest = 0.0;
+    for (const auto& [v, p] : original) farthest = std::max(farthest, std::sqrt(CGAL::squared_distance(p, mesh.point(v))));
+    if (farthest <= options_.untangle_limit * diagonal_ && !PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
+      return static_cast<long>(moved.size());
+    for (const auto& [v, p] : original) mesh.point(v) = p;  // give up: leave it to the cut-and-fill
+    return 0;
   }
 
   // The largest shell of a wrap by |volume| (a wrap of scattered pieces gives several shells).
@@ -315,6 +370,7 @@ class RepairPipeline {
 
   const RepairOptions& options_;
   RepairReport& report_;
+  double diagonal_;
 
  public:
   /// Corners of the faces dropped with smaller components (for the kept-part distance).
@@ -355,11 +411,11 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
 
   RepairResult result;
   RepairReport& report = result.report;
-  RepairPipeline pipeline(options, report);
+  const double diagonal = bounding_box(soup.points).diagonal();
+  RepairPipeline pipeline(options, report, diagonal);
   // The input census (with its self-intersection count) runs beside the pipeline.
   std::future<MeshCensus> input_census = std::async(std::launch::async, [&soup] { return census_of(soup); });
 
-  const double diagonal = bounding_box(soup.points).diagonal();
   if (!(diagonal > 0.0)) throw TopologyError("all points coincide: nothing to repair", ErrorCode::repair_failed);
 
   WeldResult weld;

@@ -15,6 +15,7 @@ void RepairOptions::validate() const {
   };
   if (!(weld_tolerance >= 0.0 && weld_tolerance < 0.01)) bad("weld_tolerance", weld_tolerance, "0 <= t < 0.01 of the diagonal");
   if (!(min_largest_share > 0.0 && min_largest_share <= 1.0)) bad("min_largest_share", min_largest_share, "0 < s <= 1");
+  if (!(untangle_limit >= 0.0 && untangle_limit <= 0.1)) bad("untangle_limit", untangle_limit, "0 <= l <= 0.1");
   if (!(wrap_alpha > 0.0 && wrap_alpha <= 0.5)) bad("wrap_alpha", wrap_alpha, "0 < alpha <= 0.5 of the diagonal");
   if (!(wrap_offset_ratio > 0.0 && wrap_offset_ratio <= 1.0)) bad("wrap_offset_ratio", wrap_offset_ratio, "0 < r <= 1");
   if (wrap_attempts < 1 || wrap_attempts > 20) bad("wrap_attempts", wrap_attempts, "1..20");
