@@ -18,6 +18,12 @@ SolverKind parse_solver_kind(const std::string& name) {
   throw OptionError("solver: unknown solver '" + name + "' (valid: verlet, static)");
 }
 
+StaticMethod parse_static_method(const std::string& name) {
+  if (name == "newton") return StaticMethod::newton;
+  if (name == "local-global") return StaticMethod::local_global;
+  throw OptionError("static-method: unknown method '" + name + "' (valid: newton, local-global)");
+}
+
 Backend parse_backend(const std::string& name) {
   if (name == "auto") return Backend::automatic;
   if (name == "structured") return Backend::structured;
@@ -66,7 +72,9 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
                                           const LatticeShape* shape) {
   options.validate();
   validate(system);
-  if (options.solver == SolverKind::static_equilibrium) return detail::make_static_solver(system, options);
+  if (options.solver == SolverKind::static_equilibrium)
+    return options.static_method == StaticMethod::newton ? detail::make_newton_solver(system, options)
+                                                         : detail::make_static_solver(system, options);
   if (options.backend == Backend::general) return detail::make_general_verlet(system, options);
   if (shape) {
     auto solver = detail::make_structured_verlet(system, options, *shape);
@@ -99,6 +107,7 @@ SettleReport settle(SpringSystem& system, const SettleOptions& options, const La
       ++report.iterations;
       report.residual_history.push_back(measured);
       if (options.record_energy) report.energy_history.push_back(solver->energy());
+      if (solver->stalled()) break;  // at the attainable accuracy
       if (!run_all && measured <= options.tolerance) {
         // The Verlet residual is measured before its step: confirm at the returned positions.
         residual = solver->residual();
@@ -110,6 +119,7 @@ SettleReport settle(SpringSystem& system, const SettleOptions& options, const La
   report.seconds = std::chrono::duration<double>(clock::now() - t1).count();
   report.setup_seconds = std::chrono::duration<double>(t1 - t0).count();
   report.residual = residual;
+  report.inner_iterations = solver->inner_iterations();
   report.converged = !run_all && residual <= options.tolerance;
   std::vector<Vec3> positions = solver->positions();
   for (std::size_t i = 0; i < positions.size(); ++i) {

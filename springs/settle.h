@@ -8,7 +8,10 @@
 ///       F_tot = F_springs - c (x(t) - x(t-dt)) / dt,
 ///   forces computed from the current positions only, so the result does not depend on
 ///   traversal order. Fixed points are written to both current and previous positions.
-/// - `static`: the equilibrium directly, by the local-global iteration of Liu, Bargteil, O'Brien
+/// - `static`: the equilibrium directly (fixed points given, zero net force elsewhere). Method
+///   `newton` (default): projected Newton with matrix-free block-Jacobi preconditioned conjugate
+///   gradients and an Armijo line search (see newton_solver.cpp). Method `local-global`: the
+///   local-global iteration of Liu, Bargteil, O'Brien
 ///   and Kavan 2013, "Fast simulation of mass-spring systems" (ACM TOG 32(6)): the constant
 ///   matrix L = sum_s D_s A_s A_s^T over free points is factored once (Eigen SimplicialLDLT);
 ///   each iteration projects every spring onto its rest length (local step) and back-substitutes
@@ -44,11 +47,17 @@ enum class DampingMode {
   critical,  ///< per point c_i = sqrt(4 k_i m_i), k_i the mean stiffness of its springs (3.5)
   value,     ///< the value in SettleOptions::damping for every point
 };
-/// Acceleration of the static solver.
+/// How the static solver finds the equilibrium.
+enum class StaticMethod {
+  newton,       ///< projected Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
+  local_global, ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
+};
+/// Acceleration of the local-global method.
 enum class Acceleration { none, anderson };
 
 /// Parse helpers for the command line. Each throws OptionError naming the option and value.
 SolverKind parse_solver_kind(const std::string& name);  ///< "verlet" | "static"
+StaticMethod parse_static_method(const std::string& name);  ///< "newton" | "local-global"
 Backend parse_backend(const std::string& name);         ///< "auto" | "structured" | "general"
 const char* solver_name(SolverKind kind);
 const char* backend_name(Backend backend);
@@ -73,6 +82,8 @@ struct SettleOptions {
                                        ///< initial energy, > 1 (default 100)
   bool record_energy = false;  ///< energy at every iteration into the report (default false)
   // Static
+  StaticMethod static_method = StaticMethod::newton;  ///< (default newton: fastest measured,
+                                                      ///< docs/BENCHMARKS.md)
   Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
   int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
 
@@ -83,8 +94,9 @@ struct SettleOptions {
 /// What a settle did.
 struct SettleReport {
   std::string solver;   ///< "verlet" | "static"
-  std::string backend;  ///< "structured" | "general" | "ldlt" (static)
-  int iterations = 0;   ///< iterations run
+  std::string backend;  ///< "structured" | "general" (Verlet) | "newton-cg" | "ldlt" (static)
+  int iterations = 0;   ///< iterations run (Newton steps for static newton)
+  int inner_iterations = 0;  ///< conjugate-gradient iterations (static newton), else 0
   bool converged = false;  ///< final residual <= tolerance (false when tolerance is 0)
   double residual = 0.0;   ///< relative residual at the returned positions
   std::vector<double> residual_history;  ///< relative residual per iteration
@@ -115,11 +127,16 @@ class SpringSolver {
   virtual double energy() = 0;
   /// Current positions, #N.
   virtual std::vector<Vec3> positions() const = 0;
-  /// Name of the data path ("structured", "general", "ldlt").
+  /// Name of the data path ("structured", "general", "newton-cg", "ldlt").
   virtual std::string backend() const = 0;
   /// Verlet time step (0 for static) and mean damping coefficient.
   virtual double time_step() const { return 0.0; }
   virtual double mean_damping() const { return 0.0; }
+  /// Inner (conjugate-gradient) iterations so far; 0 for solvers without an inner solve.
+  virtual int inner_iterations() const { return 0; }
+  /// True when the last step could not make progress in double precision (the solve is then at
+  /// its attainable accuracy; further steps change nothing).
+  virtual bool stalled() const { return false; }
 };
 
 /// Builds a solver for `system` (validated; copied). `shape`, when given, describes `system` as
@@ -129,8 +146,8 @@ class SpringSolver {
 std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
                                           const LatticeShape* shape = nullptr);
 
-/// Settles `system` in one call: steps until the relative residual <= tolerance or
-/// max_iterations, and writes the final positions into system.positions. Fixed points are
+/// Settles `system` in one call: steps until the relative residual <= tolerance,
+/// max_iterations, or a stalled step (SpringSolver::stalled), and writes the final positions into system.positions. Fixed points are
 /// bitwise unchanged. Throws as make_solver and SpringSolver::step.
 SettleReport settle(SpringSystem& system, const SettleOptions& options,
                     const LatticeShape* shape = nullptr);

@@ -35,6 +35,8 @@ std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,
                                                      const LatticeShape& shape);
+std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
+                                                 const SettleOptions& options);
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
 
