@@ -22,7 +22,9 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
@@ -48,6 +50,9 @@ struct Kernel {
   const double* a;
   const double* b;
   const std::uint8_t* fixed;
+  // Uniform lattices: one stiffness per direction, one a and one b for every point.
+  double k_uniform[kMaxDirections];
+  double a_uniform, b_uniform;
 };
 
 // Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
@@ -64,15 +69,17 @@ inline double double_of(std::uint64_t u) {
   return v;
 }
 
-// Adds the two springs of half direction d (towards p + off and from p - off) to f.
+// Adds the two springs of half direction d (towards p + off and from p - off) to f; their
+// stiffnesses are k[p] and k[p - off], or `uniform` for every spring when Uniform.
+template <bool Uniform>
 inline __attribute__((always_inline)) void add_direction(const double* __restrict x, const double* __restrict y,
                                                          const double* __restrict z, const double* __restrict k,
-                                                         long off, long p, double xp, double yp, double zp,
-                                                         double& fx, double& fy, double& fz) {
+                                                         double uniform, long off, long p, double xp, double yp,
+                                                         double zp, double& fx, double& fy, double& fz) {
   {
     const long q = p + off;
     const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
-    const double w = k[p] - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    const double w = (Uniform ? uniform : k[p]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
     fx += w * lx;
     fy += w * ly;
     fz += w * lz;
@@ -80,14 +87,14 @@ inline __attribute__((always_inline)) void add_direction(const double* __restric
   {
     const long q = p - off;
     const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
-    const double w = k[q] - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    const double w = (Uniform ? uniform : k[q]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
     fx += w * lx;
     fy += w * ly;
     fz += w * lz;
   }
 }
 
-template <bool Write, std::size_t... Ds>
+template <bool Write, bool Uniform, std::size_t... Ds>
 inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1,
                                                              std::index_sequence<Ds...>) {
   const double* __restrict x = g.x;
@@ -100,6 +107,8 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
   const double* __restrict b = g.b;
   const double* const k[sizeof...(Ds)] = {g.k[Ds]...};
   const long off[sizeof...(Ds)] = {g.offset[Ds]...};
+  const double ku[sizeof...(Ds)] = {g.k_uniform[Ds]...};
+  const double au = g.a_uniform, bu = g.b_uniform;
   std::uint64_t largest = 0;
   // Point p writes only px/py/pz[p], which no other iteration reads: there is no loop-carried
   // dependence (GCC's restrict on locals is too weak to prove it with three output streams).
@@ -107,22 +116,38 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
   for (long p = p0; p < p1; ++p) {
     const double xp = x[p], yp = y[p], zp = z[p];
     double fx = 0.0, fy = 0.0, fz = 0.0;
-    (add_direction(x, y, z, k[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
+    (add_direction<Uniform>(x, y, z, k[Ds], ku[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
     const std::uint64_t bits = bits_of(fx * fx + fy * fy + fz * fz);
     largest = bits > largest ? bits : largest;
     if (Write) {
-      px[p] = xp + b[p] * (xp - px[p]) + a[p] * fx;
-      py[p] = yp + b[p] * (yp - py[p]) + a[p] * fy;
-      pz[p] = zp + b[p] * (zp - pz[p]) + a[p] * fz;
+      const double ap = Uniform ? au : a[p], bp = Uniform ? bu : b[p];
+      px[p] = xp + bp * (xp - px[p]) + ap * fx;
+      py[p] = yp + bp * (yp - py[p]) + ap * fy;
+      pz[p] = zp + bp * (zp - pz[p]) + ap * fz;
     }
   }
   return largest;
 }
 
-FASCICLE_CLONES std::uint64_t step_row6(const Kernel& g, long p0, long p1) { return row_body<true>(g, p0, p1, std::make_index_sequence<3>()); }
-FASCICLE_CLONES std::uint64_t step_row26(const Kernel& g, long p0, long p1) { return row_body<true>(g, p0, p1, std::make_index_sequence<13>()); }
-FASCICLE_CLONES std::uint64_t force_row6(const Kernel& g, long p0, long p1) { return row_body<false>(g, p0, p1, std::make_index_sequence<3>()); }
-FASCICLE_CLONES std::uint64_t force_row26(const Kernel& g, long p0, long p1) { return row_body<false>(g, p0, p1, std::make_index_sequence<13>()); }
+
+using RowFunction = std::uint64_t (*)(const Kernel&, long, long);
+#define FASCICLE_ROW(name, write, uniform, d)                                   \
+  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1) {     \
+    return row_body<write, uniform>(g, p0, p1, std::make_index_sequence<d>()); \
+  }
+FASCICLE_ROW(step_row6, true, false, 3)
+FASCICLE_ROW(step_row26, true, false, 13)
+FASCICLE_ROW(force_row6, false, false, 3)
+FASCICLE_ROW(force_row26, false, false, 13)
+FASCICLE_ROW(step_row6_uniform, true, true, 3)
+FASCICLE_ROW(step_row26_uniform, true, true, 13)
+FASCICLE_ROW(force_row6_uniform, false, true, 3)
+FASCICLE_ROW(force_row26_uniform, false, true, 13)
+#undef FASCICLE_ROW
+
+// rows[write][uniform][model26]
+const RowFunction kRows[2][2][2] = {{{force_row6, force_row26}, {force_row6_uniform, force_row26_uniform}},
+                                    {{step_row6, step_row26}, {step_row6_uniform, step_row26_uniform}}};
 
 class StructuredVerlet final : public SpringSolver {
  public:
@@ -153,6 +178,7 @@ class StructuredVerlet final : public SpringSolver {
       for (int i = 1; i + 1 < shape.nx; ++i)
         if (fixed_[row * shape.nx + i]) row_has_fixed_[row] = 1;
     row_energy_.assign(rows_, 0.0);
+    detect_uniform();
     scale_ = residual_force_scale(system);
     floor_ = energy_floor(system);
     initial_energy_ = std::max(energy(), floor_);
@@ -207,7 +233,7 @@ class StructuredVerlet final : public SpringSolver {
     for (long i = 0; i < n_; ++i) out[i] = Vec3(x_[0][i], x_[1][i], x_[2][i]);
     return out;
   }
-  std::string backend() const override { return "structured"; }
+  std::string backend() const override { return uniform_ ? "structured-uniform" : "structured"; }
   double time_step() const override { return coefficients_.dt; }
   double mean_damping() const override { return coefficients_.mean_damping; }
 
@@ -227,7 +253,40 @@ class StructuredVerlet final : public SpringSolver {
     g.a = coefficients_.a.data();
     g.b = coefficients_.b.data();
     g.fixed = fixed_.data();
+    for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
+    g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];
     return g;
+  }
+
+  // A lattice is uniform when every direction's springs share one stiffness to 1e-12 relative
+  // (regular lattices: the rest lengths differ only by rounding) and every point has the same
+  // a and b. Its interior rows then read scalars instead of 3 + 2 (model-6) or 13 + 2 (model-26)
+  // arrays, which is most of the memory traffic. The stiffness used is the direction's mean: a
+  // change of at most 1e-12 relative, far below any solver tolerance.
+  void detect_uniform() {
+    uniform_ = n_ > 0;
+    for (long i = 1; i < n_ && uniform_; ++i)
+      uniform_ = coefficients_.a[i] == coefficients_.a[0] && coefficients_.b[i] == coefficients_.b[0];
+    for (int d = 0; d < directions_ && uniform_; ++d) {
+      double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
+      long count = 0;
+      for (long i = 0; i < n_; ++i) {
+        const double k = stiffness_[d][i];
+        if (k == 0.0) continue;  // no spring (neighbour outside)
+        lo = std::min(lo, k);
+        hi = std::max(hi, k);
+        sum += k;
+        ++count;
+      }
+      if (count == 0 || hi - lo > 1e-12 * hi) uniform_ = false;
+      else k_uniform_[d] = sum / count;
+    }
+    if (!uniform_) return;
+    // The checked boundary path reads the arrays: give them the same values.
+    for (int d = 0; d < directions_; ++d)
+      for (long i = 0; i < n_; ++i)
+        if (stiffness_[d][i] != 0.0) stiffness_[d][i] = k_uniform_[d];
   }
 
   // Checked scalar path for a point on the boundary of the index box.
@@ -270,10 +329,7 @@ class StructuredVerlet final : public SpringSolver {
         } else {
           take(boundary_point(g, base, 0, j, k, write));
           const long p0 = base + 1, p1 = base + nx - 1;
-          if (write)
-            take(model6 ? step_row6(g, p0, p1) : step_row26(g, p0, p1));
-          else
-            take(model6 ? force_row6(g, p0, p1) : force_row26(g, p0, p1));
+          take(kRows[write][uniform_][model6 ? 0 : 1](g, p0, p1));
           take(boundary_point(g, base + nx - 1, nx - 1, j, k, write));
         }
         row_largest_[row] = largest;
@@ -292,6 +348,8 @@ class StructuredVerlet final : public SpringSolver {
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
   long offset_[kMaxDirections] = {};
+  double k_uniform_[kMaxDirections] = {};
+  bool uniform_ = false;
   std::vector<double> x_[3], p_[3];
   std::vector<std::uint8_t> fixed_;
   std::vector<std::uint64_t> row_largest_;
