@@ -8,6 +8,7 @@
 #include "geometry/errors.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
+#include "springs/template_plot.h"
 
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
@@ -34,6 +35,7 @@ struct SpringsBenchArgs {
   std::string trade_sizes = "20,50,100";
   std::string sections = "bandwidth,speed,rest,trade";
   std::string json;
+  std::string plots;            // folder for the template pictures (section "templates")
   double min_seconds = 0.5;     // per speed measurement
   double trade_limit = 60.0;    // seconds per trade run
   int general_max_size = 100;   // largest lattice the general path is timed on (memory)
@@ -322,6 +324,15 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
 
 void run_springs_bench(const SpringsBenchArgs& args) {
   nlohmann::json records = nlohmann::json::array();
+  if (has_section(args, "templates")) {
+    if (args.plots.empty()) throw OptionError("plots: section templates needs --plots FOLDER");
+    for (TemplateKind kind : all_template_kinds()) {
+      const std::string path = args.plots + "/" + template_name(kind) + ".svg";
+      const std::string svg = template_svg(kind);
+      write_file_atomically(path, [&](std::ostream& out) { out << svg; });
+      std::printf("wrote %s\n", path.c_str());
+    }
+  }
   double triad = 0.0;
   if (has_section(args, "bandwidth") || has_section(args, "speed")) {
     const auto [copy, best_triad] = measure_bandwidth();
@@ -346,13 +357,14 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--sizes", args->sizes, "Lattice sizes n (n^3 points) for ms/iteration")->capture_default_str();
   cmd->add_option("--rest-sizes", args->rest_sizes, "Sizes for iterations to rest (tables 7.4-7.6)")->capture_default_str();
   cmd->add_option("--trade-sizes", args->trade_sizes, "Sizes for the speed/accuracy trade")->capture_default_str();
-  cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade")->capture_default_str();
+  cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade,templates")->capture_default_str();
   cmd->add_option("--trade-limit", args->trade_limit, "Seconds per trade run")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();
   cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")->capture_default_str();
   cmd->add_option("--json", args->json, "Write the records as JSON here");
+  cmd->add_option("--plots", args->plots, "Folder for the template pictures (section templates)");
   cmd->callback([args] { run_springs_bench(*args); });
 }
 
