@@ -11,4 +11,7 @@ namespace fascicle::bench {
 /// the corpus (../shared/data/muscles and broken).
 void add_repair_bench(CLI::App& bench);
 
+/// `fascicle bench springs [--sizes ...] [--json FILE]`: the CPU spring solvers (docs/BENCHMARKS.md).
+void add_springs_bench(CLI::App& bench);
+
 }  // namespace fascicle::bench
