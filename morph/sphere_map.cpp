@@ -1,0 +1,123 @@
+#include "morph/sphere_map.h"
+
+#include "geometry/errors.h"
+#include "morph/mesh_adjacency.h"
+#include "morph/sphere_steps.h"
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <chrono>
+
+namespace fascicle {
+
+const char* to_string(SphereMethod method) { return method == SphereMethod::relax ? "relax" : "tutte"; }
+
+SphereMethod sphere_method_from_string(const std::string& name) {
+  if (name == "tutte") return SphereMethod::tutte;
+  if (name == "relax") return SphereMethod::relax;
+  throw OptionError("--sphere-method: '" + name + "' is not a method (use tutte or relax)");
+}
+
+void SphereMapOptions::validate() const {
+  auto bad = [](const std::string& field, const std::string& value, const std::string& why) {
+    throw OptionError("sphere map option " + field + " = " + value + ": " + why);
+  };
+  if (mobius_steps < 0) bad("mobius_steps", std::to_string(mobius_steps), "must be >= 0");
+  if (!(mobius_tolerance > 0.0 && mobius_tolerance < 1.0))
+    bad("mobius_tolerance", std::to_string(mobius_tolerance), "must be in (0, 1)");
+  if (balance_sweeps < 0) bad("balance_sweeps", std::to_string(balance_sweeps), "must be >= 0");
+  if (!(balance_tolerance >= 0.0 && balance_tolerance < 1.0))
+    bad("balance_tolerance", std::to_string(balance_tolerance), "must be in [0, 1)");
+  if (!(relax_threshold > 0.0 && relax_threshold < 1.0))
+    bad("relax_threshold", std::to_string(relax_threshold), "must be in (0, 1)");
+  if (relax_max_iterations < 1) bad("relax_max_iterations", std::to_string(relax_max_iterations), "must be >= 1");
+  if (relax_restarts < 0) bad("relax_restarts", std::to_string(relax_restarts), "must be >= 0");
+  if (!(tube_elongation > 0.0)) bad("tube_elongation", std::to_string(tube_elongation), "must be > 0");
+  if (untangle_sweeps < 0) bad("untangle_sweeps", std::to_string(untangle_sweeps), "must be >= 0");
+  if (relax_threshold_lowerings < 0)
+    bad("relax_threshold_lowerings", std::to_string(relax_threshold_lowerings), "must be >= 0");
+}
+
+nlohmann::json SphereMapReport::to_json() const {
+  nlohmann::json j{{"method", method},
+                   {"status", status},
+                   {"failure", failure},
+                   {"quality", fascicle::to_json(quality)},
+                   {"iterations", iterations},
+                   {"seconds", seconds}};
+  if (method == "tutte") {
+    j["initial_map"] = initial_map;
+    j["elongation"] = elongation;
+    j["cut_face"] = cut_face;
+    j["lift_margin"] = lift_margin;
+    j["mobius_steps"] = mobius_steps;
+    j["mobius_residual"] = mobius_residual;
+    j["rejected_moves"] = rejected_moves;
+    j["solve_seconds"] = solve_seconds;
+  } else {
+    j["restarts"] = restarts;
+    j["threshold_lowerings"] = threshold_lowerings;
+    j["center_moved_inside"] = center_moved_inside;
+  }
+  return j;
+}
+
+SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& options) {
+  options.validate();
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  const auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  const MeshAdjacency adjacency = check_sphere_topology(mesh);
+  SphereMap map;
+  SphereMapReport& report = map.report;
+  report.method = to_string(options.method);
+  if (options.method == SphereMethod::tutte) {
+    const std::vector<double> shares = detail::area_shares(mesh);
+    // Long shapes start from the tube map, round ones from the stereographic Tutte lift; if the
+    // first is not a bijection after untangling, the other is tried and the better one kept.
+    std::array<int, 2> ends{};
+    const double elongation = detail::elongation(mesh, adjacency, ends);
+    report.elongation = elongation;
+    const bool tube_first = elongation > options.tube_elongation;
+    detail::TutteLift best;
+    long best_bad = -1;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      const bool tube = (attempt == 0) == tube_first;
+      detail::TutteLift lift = tube ? detail::tube_lift(mesh, adjacency, ends)
+                                    : detail::tutte_lift(mesh, adjacency, options.anisotropic);
+      if (lift.sphere.empty()) continue;
+      if (!tube) lift.kind = "stereographic";
+      const long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+      if (best_bad < 0 || bad < best_bad) {
+        best = std::move(lift);
+        best_bad = bad;
+      }
+      if (best_bad == 0) break;
+    }
+    report.solve_seconds = since(start);
+    report.initial_map = best.kind;
+    report.cut_face = best.cut_face;
+    report.lift_margin = best.margin;
+    map.positions = std::move(best.sphere);
+    // The tube map is area-centred by construction (equal-area lift of an arc-length layout);
+    // the stereographic start needs the Moebius centring.
+    if (report.initial_map == "stereographic")
+      report.mobius_steps = detail::mobius_center(mesh, shares, map.positions, options.mobius_steps,
+                                                  options.mobius_tolerance, report.mobius_residual);
+    report.iterations = detail::balance_areas(mesh, adjacency, shares, map.positions, options.balance_sweeps,
+                                              options.balance_tolerance, report.rejected_moves);
+  } else {
+    map.positions = detail::thesis_relax(mesh, adjacency, options, report);
+  }
+  report.seconds = since(start);
+  report.quality = measure_sphere_map(mesh, map.positions);
+  if (report.failure.empty() && !report.quality.bijective())
+    report.failure = std::to_string(report.quality.flipped) + " flipped and " +
+                     std::to_string(report.quality.degenerate) + " degenerate triangles, spherical areas sum to " +
+                     std::to_string(report.quality.area_sum) + " instead of 4 pi";
+  report.status = report.failure.empty() ? "ok" : "failed";
+  return map;
+}
+
+}  // namespace fascicle
