@@ -42,10 +42,19 @@ MeshFormat mesh_format_from_path(const std::string& path);
 
 /// Reads a polygon soup from `path` (format by extension).
 /// Returns every point and every face as stored; all indices in range, all coordinates finite.
-/// Throws InputError with code file_missing, file_empty, unknown_format, truncated,
-/// index_out_of_range, bad_number, too_large or malformed, and a one-line message naming the
-/// file and the line (text) or byte offset (binary).
+/// STL facets give three points each (no welding); PLY/VTK triangle strips are split into
+/// triangles with alternating winding (degenerate ones from repeated indices kept); OBJ negative
+/// indices are resolved; extra per-vertex values (colours, normals, texture indices) are ignored.
+/// Throws InputError with code file_missing, file_empty (also when the file holds no face),
+/// unknown_format, truncated, index_out_of_range, bad_number, too_large or malformed, and a
+/// one-line message naming the file and the line (text) or byte offset (binary). A declared
+/// count is checked against the file size and options.max_elements before anything is allocated.
 PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& options = {});
+
+/// Reads polylines from `path`: .vtk (legacy polydata LINES; scalar CELL_DATA arrays of the
+/// lines become `cell_data`) or .obj (`l` elements; no cell data), the formats write_polylines
+/// writes. Throws InputError as read_polygon_soup (file_empty when the file holds no line).
+Polylines read_polylines(const std::string& path, const ReadOptions& options = {});
 
 /// Writes a triangle mesh to `path`, format by extension (off, obj, stl, ply, vtk), atomically.
 /// Throws IoError (output_failed) or InputError(unknown_format) for an unsupported extension.

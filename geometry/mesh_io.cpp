@@ -1,0 +1,165 @@
+#include "geometry/mesh_io.h"
+
+#include "geometry/atomic_file.h"
+#include "geometry/detail/parse_cursor.h"
+#include "geometry/errors.h"
+#include "geometry/thesis_format.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <climits>
+#include <cstring>
+#include <limits>
+
+namespace fascicle {
+
+namespace detail {
+
+std::string load_file(const std::string& path, const ReadOptions& options) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(ErrorCode::file_missing, path + ": cannot open: " + std::strerror(errno));
+  struct ::stat info {};
+  if (::fstat(fd, &info) != 0) {
+    const int err = errno;
+    ::close(fd);
+    throw InputError(ErrorCode::file_missing, path + ": cannot read: " + std::strerror(err));
+  }
+  if (S_ISDIR(info.st_mode)) {
+    ::close(fd);
+    throw InputError(ErrorCode::file_missing, path + ": is a folder, not a file");
+  }
+  const auto size = static_cast<std::uint64_t>(info.st_size);
+  if (size > options.max_file_bytes) {
+    ::close(fd);
+    throw InputError(ErrorCode::too_large, path + ": file has " + std::to_string(size) +
+                                               " bytes, more than the limit max_file_bytes = " +
+                                               std::to_string(options.max_file_bytes));
+  }
+  if (size == 0) {
+    ::close(fd);
+    throw InputError(ErrorCode::file_empty, path + ": line 1: file is empty (0 bytes)");
+  }
+  std::string data(static_cast<std::size_t>(size), '\0');
+  std::size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int err = errno;
+      ::close(fd);
+      throw InputError(ErrorCode::file_missing, path + ": byte " + std::to_string(done) +
+                                                    ": read failed: " + std::strerror(err));
+    }
+    if (n == 0) break;  // the file shrank while reading
+    done += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  data.resize(done);
+  if (data.empty()) throw InputError(ErrorCode::file_empty, path + ": line 1: file is empty (0 bytes)");
+  return data;
+}
+
+void check_declared_count(const ParseCursor& cursor, std::uint64_t count, std::uint64_t min_bytes,
+                          std::uint64_t available, const char* what, const ReadOptions& options) {
+  const std::uint64_t limit = std::min<std::uint64_t>(options.max_elements, INT_MAX);
+  if (count > limit)
+    cursor.fail(ErrorCode::too_large, std::string("declares ") + std::to_string(count) + " " + what +
+                                          ", more than the limit of " + std::to_string(limit));
+  if (min_bytes > 0 && count > available / min_bytes)
+    cursor.fail(ErrorCode::too_large, std::string("declares ") + std::to_string(count) + " " + what +
+                                          " but the file has only " + std::to_string(available) +
+                                          " bytes (each needs at least " + std::to_string(min_bytes) + ")");
+}
+
+void append_double(std::string& out, double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general,
+                                    std::numeric_limits<double>::max_digits10);
+  out.append(buffer, result.ptr);
+}
+
+void append_int(std::string& out, long long value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out.append(buffer, result.ptr);
+}
+
+}  // namespace detail
+
+MeshFormat mesh_format_from_path(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == "off") return MeshFormat::off;
+  if (ext == "obj") return MeshFormat::obj;
+  if (ext == "stl") return MeshFormat::stl;
+  if (ext == "ply") return MeshFormat::ply;
+  if (ext == "vtk") return MeshFormat::vtk;
+  if (ext == "txt") return MeshFormat::thesis;
+  throw InputError(ErrorCode::unknown_format,
+                   path + ": unknown mesh format '" + ext + "' (expected .off .obj .stl .ply .vtk .txt)");
+}
+
+PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& options) {
+  const MeshFormat format = mesh_format_from_path(path);
+  PolygonSoup soup;
+  if (format == MeshFormat::thesis) {
+    ThesisModel model = read_thesis_model(path, options);
+    soup.points = std::move(model.points);
+    soup.polygons.reserve(model.triangles.size());
+    for (const Triangle& t : model.triangles) soup.polygons.push_back({t[0], t[1], t[2]});
+  } else {
+    const std::string data = detail::load_file(path, options);
+    switch (format) {
+      case MeshFormat::off: soup = detail::read_off(path, data, options); break;
+      case MeshFormat::obj: soup = detail::read_obj(path, data, options); break;
+      case MeshFormat::stl: soup = detail::read_stl(path, data, options); break;
+      case MeshFormat::ply: soup = detail::read_ply(path, data, options); break;
+      case MeshFormat::vtk: {
+        detail::VtkPolyData vtk = detail::read_vtk(path, data, options);
+        soup.points = std::move(vtk.points);
+        soup.polygons = std::move(vtk.polygons);
+        break;
+      }
+      case MeshFormat::thesis: break;
+    }
+  }
+  if (soup.polygons.empty())
+    throw InputError(ErrorCode::file_empty, path + ": holds " + std::to_string(soup.points.size()) +
+                                                " points but no faces");
+  return soup;
+}
+
+Polylines read_polylines(const std::string& path, const ReadOptions& options) {
+  const std::string ext = lower_extension(path);
+  if (ext != "vtk" && ext != "obj")
+    throw InputError(ErrorCode::unknown_format,
+                     path + ": unknown polyline format '" + ext + "' (expected .vtk or .obj)");
+  const std::string data = detail::load_file(path, options);
+  std::vector<Vec3> points;
+  std::vector<std::vector<int>> index_lines;
+  Polylines result;
+  if (ext == "vtk") {
+    detail::VtkPolyData vtk = detail::read_vtk(path, data, options);
+    points = std::move(vtk.points);
+    index_lines = std::move(vtk.lines);
+    result.cell_data = std::move(vtk.line_cell_data);
+  } else {
+    detail::ObjData obj = detail::read_obj_data(path, data, options);
+    points = std::move(obj.points);
+    index_lines = std::move(obj.lines);
+  }
+  if (index_lines.empty()) throw InputError(ErrorCode::file_empty, path + ": holds no polylines");
+  result.lines.reserve(index_lines.size());
+  for (const auto& indices : index_lines) {
+    std::vector<Vec3> line;
+    line.reserve(indices.size());
+    for (int i : indices) line.push_back(points[static_cast<std::size_t>(i)]);
+    result.lines.push_back(std::move(line));
+  }
+  return result;
+}
+
+}  // namespace fascicle
