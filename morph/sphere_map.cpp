@@ -7,7 +7,9 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace fascicle {
 
@@ -33,7 +35,8 @@ void SphereMapOptions::validate() const {
     bad("relax_threshold", std::to_string(relax_threshold), "must be in (0, 1)");
   if (relax_max_iterations < 1) bad("relax_max_iterations", std::to_string(relax_max_iterations), "must be >= 1");
   if (relax_restarts < 0) bad("relax_restarts", std::to_string(relax_restarts), "must be >= 0");
-  if (!(tube_elongation > 0.0)) bad("tube_elongation", std::to_string(tube_elongation), "must be > 0");
+  if (!(tube_elongation >= 0.0)) bad("tube_elongation", std::to_string(tube_elongation), "must be >= 0");
+  if (reweight_rounds < 0) bad("reweight_rounds", std::to_string(reweight_rounds), "must be >= 0");
   if (untangle_sweeps < 0) bad("untangle_sweeps", std::to_string(untangle_sweeps), "must be >= 0");
   if (relax_threshold_lowerings < 0)
     bad("relax_threshold_lowerings", std::to_string(relax_threshold_lowerings), "must be >= 0");
@@ -49,6 +52,7 @@ nlohmann::json SphereMapReport::to_json() const {
   if (method == "tutte") {
     j["initial_map"] = initial_map;
     j["elongation"] = elongation;
+    j["reweight_rounds"] = reweight_rounds;
     j["cut_face"] = cut_face;
     j["lift_margin"] = lift_margin;
     j["mobius_steps"] = mobius_steps;
@@ -80,11 +84,12 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     const double elongation = detail::elongation(mesh, adjacency, ends);
     report.elongation = elongation;
     const bool tube_first = elongation > options.tube_elongation;
+    detail::TubeEmbedder tube_embedder(mesh, adjacency, ends);
     detail::TutteLift best;
     long best_bad = -1;
     for (int attempt = 0; attempt < 2; ++attempt) {
       const bool tube = (attempt == 0) == tube_first;
-      detail::TutteLift lift = tube ? detail::tube_lift(mesh, adjacency, ends)
+      detail::TutteLift lift = tube ? tube_embedder.lift()
                                     : detail::tutte_lift(mesh, adjacency, options.anisotropic);
       if (lift.sphere.empty()) continue;
       if (!tube) lift.kind = "stereographic";
@@ -94,6 +99,40 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
         best_bad = bad;
       }
       if (best_bad == 0) break;
+    }
+    // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
+    // mean of (spherical share / surface share)^0.5 of its faces, so crowded regions pull less
+    // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
+    // positive weights, hence bijective in the plane; a round is kept only when the lifted map
+    // has no bad triangle and a lower mean |log area ratio|.
+    if (best.kind == "tube" && options.reweight_rounds > 0) {
+      auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
+        double sum = 0.0;
+        for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+          const Triangle& t = mesh.triangles[f];
+          const double r = detail::sphere_triangle_area(x[t[0]], x[t[1]], x[t[2]]) / (4.0 * M_PI) / shares[f];
+          if (ratio) (*ratio)[f] = r;
+          sum += std::abs(std::log(std::max(r, 1e-300)));
+        }
+        return sum / static_cast<double>(mesh.triangles.size());
+      };
+      std::vector<double> ratio(mesh.triangles.size()), scale(mesh.triangles.size(), 1.0);
+      double current = log_mean(best.sphere, &ratio);
+      for (int round = 0; round < options.reweight_rounds; ++round) {
+        for (std::size_t f = 0; f < scale.size(); ++f)
+          scale[f] = std::clamp(scale[f] * std::sqrt(std::max(ratio[f], 1e-12)), 1e-8, 1e8);
+        detail::TutteLift next = tube_embedder.lift(&scale);
+        const long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
+        std::vector<double> next_ratio(mesh.triangles.size());
+        const double value = log_mean(next.sphere, &next_ratio);
+        // Better means fewer bad triangles, or as few and less distortion.
+        if (bad > best_bad || (bad == best_bad && !(value < current))) break;
+        best_bad = bad;
+        ++report.reweight_rounds;
+        current = value;
+        ratio.swap(next_ratio);
+        best = std::move(next);
+      }
     }
     report.solve_seconds = since(start);
     report.initial_map = best.kind;

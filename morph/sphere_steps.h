@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -61,8 +62,23 @@ TutteLift tutte_lift(const TriangleMesh& mesh, const MeshAdjacency& adjacency, b
 /// the cut (placed by arc length), and the hexagon mapped to the sphere by Lambert's cylindrical
 /// equal-area projection (longitude from x, z = cos(polar angle) linear in y), so a uniform tube
 /// lands with uniform area. The banks both become the date line. Triangles at the poles may come
-/// out flipped; the caller checks and untangles.
-TutteLift tube_lift(const TriangleMesh& mesh, const MeshAdjacency& adjacency, const std::array<int, 2>& ends);
+/// out flipped; the caller checks and untangles. Built once (cut, weights, symbolic
+/// factorisation); lift() solves again for new weight factors.
+class TubeEmbedder {
+ public:
+  TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adjacency, const std::array<int, 2>& ends);
+  ~TubeEmbedder();
+  /// False when the ends are adjacent (no tube to cut).
+  bool valid() const;
+  /// `face_scale` (optional, #F positive factors) multiplies each edge's weight by the geometric
+  /// mean of its two faces' factors: the reweighting rounds use it to let crowded regions grow.
+  /// Throws SolverError when the factorisation fails.
+  TutteLift lift(const std::vector<double>* face_scale = nullptr);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// Local untangling: every vertex of a flipped or degenerate triangle is moved to the normalised
 /// centroid of its neighbours when that raises the smallest det of its triangles; up to

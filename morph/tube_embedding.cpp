@@ -25,29 +25,43 @@ double elongation(const TriangleMesh& mesh, const MeshAdjacency& adj, std::array
   return area > 0.0 ? length * length / area : 0.0;
 }
 
-TutteLift tube_lift(const TriangleMesh& mesh, const MeshAdjacency& adj, const std::array<int, 2>& ends) {
-  const int nv = static_cast<int>(mesh.positions.size());
+struct TubeEmbedder::Impl {
+  const TriangleMesh* mesh = nullptr;
+  int nv = 0, n_cut = 0, n = 0;
+  std::vector<int> path;
+  std::vector<Eigen::Vector2d> uv;            // boundary positions (fixed), interior filled per solve
+  std::vector<int> index;                     // cut vertex -> unknown, -1 when fixed
+  Eigen::SparseMatrix<double> weights;        // clamped cotangent weights on the cut mesh
+  std::vector<std::array<int, 2>> edge_faces; // per stored weight: its faces (second -1 on the cut)
+  Eigen::SparseMatrix<double> system;         // Dirichlet Laplacian, pattern fixed
+  std::vector<int> system_slot;               // per stored weight: slot in system, -1 to the rhs
+  std::vector<int> diagonal_slot;             // per unknown: slot of its diagonal
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+};
+
+TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, const std::array<int, 2>& ends)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& d = *impl_;
+  d.mesh = &mesh;
+  const int nv = d.nv = static_cast<int>(mesh.positions.size());
   const int nf = static_cast<int>(mesh.triangles.size());
-  TutteLift lift;
-  lift.kind = "tube";
   // Shortest path s -> t. No edge joins two non-consecutive path vertices (it would be a
   // shortcut), so the cut disk has no dividing edge and Floater's theorem applies.
   std::vector<int> previous;
   const std::vector<double> dist = edge_distances(mesh, adj, ends[1], &previous);
-  std::vector<int> path;
-  for (int v = ends[0]; v != -1; v = previous[v]) path.push_back(v);
-  const int m = static_cast<int>(path.size());
-  if (m < 3) return lift;  // ends adjacent: not a tube; the caller uses the other map
+  for (int v = ends[0]; v != -1; v = previous[v]) d.path.push_back(v);
+  const int m = static_cast<int>(d.path.size());
+  if (m < 3) return;  // ends adjacent: not a tube; valid() is false
 
   // Split every inner path vertex: faces on one bank (from edge v->after turning back to edge
   // before->v) get the copy nv + i - 1.
   std::vector<Triangle> cut = mesh.triangles;
   for (int i = 1; i + 1 < m; ++i) {
-    const int v = path[i], before = path[i - 1], after = path[i + 1];
+    const int v = d.path[i], before = d.path[i - 1], after = d.path[i + 1];
     const int copy = nv + i - 1;
     int c = -1;
-    for (int d = adj.corner_start[v]; d < adj.corner_start[v + 1]; ++d)
-      if (adj.corner_next[d] == after) c = d;
+    for (int e = adj.corner_start[v]; e < adj.corner_start[v + 1]; ++e)
+      if (adj.corner_next[e] == after) c = e;
     FASCICLE_CHECK(c >= 0, "path edge exists");
     for (int guard = 0; guard <= adj.valence(v); ++guard) {
       Triangle& t = cut[adj.corner_face[c]];
@@ -55,31 +69,31 @@ TutteLift tube_lift(const TriangleMesh& mesh, const MeshAdjacency& adj, const st
         if (t[k] == v) t[k] = copy;
       if (adj.corner_prev[c] == before) break;
       int next = -1;
-      for (int d = adj.corner_start[v]; d < adj.corner_start[v + 1]; ++d)
-        if (adj.corner_next[d] == adj.corner_prev[c]) next = d;
+      for (int e = adj.corner_start[v]; e < adj.corner_start[v + 1]; ++e)
+        if (adj.corner_next[e] == adj.corner_prev[c]) next = e;
       FASCICLE_CHECK(next >= 0, "fan continues");
       c = next;
     }
   }
-  const int n_cut = nv + m - 2;
+  const int n_cut = d.n_cut = nv + m - 2;
 
   // Boundary: s at (0, 0), t at (0, pi), one bank at x = pi, the other at x = -pi, y by arc
   // length along the path: a convex hexagon.
-  std::vector<Eigen::Vector2d> uv(n_cut, Eigen::Vector2d::Zero());
+  d.uv.assign(n_cut, Eigen::Vector2d::Zero());
   std::vector<char> fixed(n_cut, 0);
   const double total = dist[ends[0]];
   for (int i = 0; i < m; ++i) {
-    const double y = M_PI * (total - dist[path[i]]) / total;
+    const double y = M_PI * (total - dist[d.path[i]]) / total;
     if (i == 0 || i + 1 == m) {
-      uv[path[i]] = Eigen::Vector2d(0.0, i == 0 ? 0.0 : M_PI);
-      fixed[path[i]] = 1;
+      d.uv[d.path[i]] = Eigen::Vector2d(0.0, i == 0 ? 0.0 : M_PI);
+      fixed[d.path[i]] = 1;
     } else {
-      uv[path[i]] = Eigen::Vector2d(M_PI, y);
-      uv[nv + i - 1] = Eigen::Vector2d(-M_PI, y);
-      fixed[path[i]] = fixed[nv + i - 1] = 1;
+      d.uv[d.path[i]] = Eigen::Vector2d(M_PI, y);
+      d.uv[nv + i - 1] = Eigen::Vector2d(-M_PI, y);
+      fixed[d.path[i]] = fixed[nv + i - 1] = 1;
     }
   }
-  auto position = [&](int v) -> const Vec3& { return mesh.positions[v < nv ? v : path[v - nv + 1]]; };
+  auto position = [&](int v) -> const Vec3& { return mesh.positions[v < nv ? v : d.path[v - nv + 1]]; };
   // Positive (clamped) cotangent weights on the cut mesh.
   std::vector<Eigen::Triplet<double>> entries;
   entries.reserve(static_cast<std::size_t>(nf) * 6);
@@ -92,57 +106,104 @@ TutteLift tube_lift(const TriangleMesh& mesh, const MeshAdjacency& adj, const st
       entries.emplace_back(t[(k + 1) % 3], t[(k + 2) % 3], 0.5 * cot);
       entries.emplace_back(t[(k + 2) % 3], t[(k + 1) % 3], 0.5 * cot);
     }
-  Eigen::SparseMatrix<double> weights(n_cut, n_cut);
-  weights.setFromTriplets(entries.begin(), entries.end());
+  d.weights.resize(n_cut, n_cut);
+  d.weights.setFromTriplets(entries.begin(), entries.end());
+  d.weights.makeCompressed();
   entries.clear();
   double mean_abs = 0.0;
-  for (int k = 0; k < weights.outerSize(); ++k)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(weights, k); it; ++it) mean_abs += std::abs(it.value());
-  mean_abs /= std::max<Eigen::Index>(weights.nonZeros(), 1);
-  for (int k = 0; k < weights.outerSize(); ++k)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(weights, k); it; ++it)
+  for (int k = 0; k < d.weights.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(d.weights, k); it; ++it) mean_abs += std::abs(it.value());
+  mean_abs /= std::max<Eigen::Index>(d.weights.nonZeros(), 1);
+  for (int k = 0; k < d.weights.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(d.weights, k); it; ++it)
       it.valueRef() = std::clamp(it.value(), 1e-3 * mean_abs, 1e3 * mean_abs);
-  std::vector<int> index(n_cut, -1);
-  int n = 0;
-  for (int v = 0; v < n_cut; ++v)
-    if (!fixed[v]) index[v] = n++;
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 2);
-  for (int v = 0; v < n_cut; ++v) {
-    if (index[v] < 0) continue;
-    double diagonal = 0.0;
-    for (Eigen::SparseMatrix<double>::InnerIterator it(weights, v); it; ++it) {
-      const int w = static_cast<int>(it.row());
-      diagonal += it.value();
-      if (index[w] >= 0)
-        entries.emplace_back(index[v], index[w], -it.value());
-      else
-        rhs.row(index[v]) += it.value() * uv[w].transpose();
+  // Faces of every stored weight.
+  d.edge_faces.assign(static_cast<std::size_t>(d.weights.nonZeros()), {-1, -1});
+  const double* base = d.weights.valuePtr();
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = cut[f][(k + 1) % 3], b = cut[f][(k + 2) % 3];
+      for (const auto& [r, c] : {std::pair<int, int>(a, b), std::pair<int, int>(b, a)}) {
+        auto& slot = d.edge_faces[static_cast<std::size_t>(&d.weights.coeffRef(r, c) - base)];
+        (slot[0] < 0 ? slot[0] : slot[1]) = f;
+      }
     }
-    entries.emplace_back(index[v], index[v], diagonal);
-  }
-  Eigen::SparseMatrix<double> system(n, n);
-  system.setFromTriplets(entries.begin(), entries.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(system);
-  if (solver.info() != Eigen::Success) throw SolverError("sphere map: the tube system could not be factorised");
-  const Eigen::MatrixXd solution = solver.solve(rhs);
-  if (solver.info() != Eigen::Success || !solution.allFinite())
-    throw SolverError("sphere map: the tube solve failed or produced NaN");
+  // Dirichlet system pattern: unknowns are the free vertices.
+  d.index.assign(n_cut, -1);
   for (int v = 0; v < n_cut; ++v)
-    if (index[v] >= 0) uv[v] = solution.row(index[v]).transpose();
+    if (!fixed[v]) d.index[v] = d.n++;
+  for (int v = 0; v < n_cut; ++v) {
+    if (d.index[v] < 0) continue;
+    entries.emplace_back(d.index[v], d.index[v], 1.0);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(d.weights, v); it; ++it)
+      if (d.index[it.row()] >= 0) entries.emplace_back(d.index[it.row()], d.index[v], 1.0);
+  }
+  d.system.resize(d.n, d.n);
+  d.system.setFromTriplets(entries.begin(), entries.end());
+  d.system.makeCompressed();
+  d.system_slot.assign(static_cast<std::size_t>(d.weights.nonZeros()), -1);
+  d.diagonal_slot.assign(d.n, -1);
+  const double* sbase = d.system.valuePtr();
+  for (int v = 0; v < n_cut; ++v) {
+    if (d.index[v] < 0) continue;
+    d.diagonal_slot[d.index[v]] = static_cast<int>(&d.system.coeffRef(d.index[v], d.index[v]) - sbase);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(d.weights, v); it; ++it)
+      if (d.index[it.row()] >= 0)
+        d.system_slot[static_cast<std::size_t>(&it.valueRef() - base)] =
+            static_cast<int>(&d.system.coeffRef(d.index[it.row()], d.index[v]) - sbase);
+  }
+  d.solver.analyzePattern(d.system);
+}
 
+TubeEmbedder::~TubeEmbedder() = default;
+
+bool TubeEmbedder::valid() const { return impl_->n > 0; }
+
+TutteLift TubeEmbedder::lift(const std::vector<double>* face_scale) {
+  Impl& d = *impl_;
+  TutteLift lift;
+  lift.kind = "tube";
+  if (!valid()) return lift;
+  // Assemble values: weight w(row, v) scaled by the geometric mean of its faces' factors.
+  double* values = d.system.valuePtr();
+  std::fill(values, values + d.system.nonZeros(), 0.0);
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(d.n, 2);
+  const double* base = d.weights.valuePtr();
+  for (int v = 0; v < d.n_cut; ++v) {
+    const int iv = d.index[v];
+    if (iv < 0) continue;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(d.weights, v); it; ++it) {
+      const std::size_t k = static_cast<std::size_t>(&it.value() - base);
+      double w = it.value();
+      if (face_scale) {
+        const auto& faces = d.edge_faces[k];
+        w *= faces[1] >= 0 ? std::sqrt((*face_scale)[faces[0]] * (*face_scale)[faces[1]]) : (*face_scale)[faces[0]];
+      }
+      values[d.diagonal_slot[iv]] += w;
+      if (d.system_slot[k] >= 0)
+        values[d.system_slot[k]] = -w;
+      else
+        rhs.row(iv) += w * d.uv[it.row()].transpose();
+    }
+  }
+  d.solver.factorize(d.system);
+  if (d.solver.info() != Eigen::Success) throw SolverError("sphere map: the tube system could not be factorised");
+  const Eigen::MatrixXd solution = d.solver.solve(rhs);
+  if (d.solver.info() != Eigen::Success || !solution.allFinite())
+    throw SolverError("sphere map: the tube solve failed or produced NaN");
   // Lambert cylindrical equal-area: longitude x, z = 1 - 2 y / pi.
-  lift.sphere.resize(nv);
-  for (int v = 0; v < nv; ++v) {
-    const double z = std::clamp(1.0 - 2.0 * uv[v].y() / M_PI, -1.0, 1.0);
+  lift.sphere.resize(d.nv);
+  for (int v = 0; v < d.nv; ++v) {
+    const Eigen::Vector2d p = d.index[v] >= 0 ? Eigen::Vector2d(solution.row(d.index[v]).transpose()) : d.uv[v];
+    const double z = std::clamp(1.0 - 2.0 * p.y() / M_PI, -1.0, 1.0);
     const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-    lift.sphere[v] = Vec3(r * std::cos(uv[v].x()), r * std::sin(uv[v].x()), z);
+    lift.sphere[v] = Vec3(r * std::cos(p.x()), r * std::sin(p.x()), z);
   }
   double orientation = 0.0;
-  for (const Triangle& t : mesh.triangles)
+  for (const Triangle& t : d.mesh->triangles)
     orientation += sphere_det(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]);
   if (orientation < 0.0)
     for (Vec3& p : lift.sphere) p.x() = -p.x();
-  lift.margin = 0.0;
   return lift;
 }
 

@@ -6,6 +6,7 @@
 #include "tests/morph_test_shapes.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 
@@ -127,4 +128,25 @@ TEST_CASE("thesis relaxation maps a round mesh and reports how it fails on a lon
   } else {
     CHECK_FALSE(thin_map.report.failure.empty());
   }
+}
+
+TEST_CASE("both starts give a bijection when forced", "[morph]") {
+  SphereMapOptions stereo, tube;
+  stereo.tube_elongation = 1e9;  // never the tube start first
+  tube.tube_elongation = 0.0;    // always the tube start first
+  const TriangleMesh round = test::icosphere(3);
+  const TriangleMesh bent = test::bent_capsule(1.0, 8.0, 16, 90.0);
+  const SphereMap a = map_to_sphere(round, tube), b = map_to_sphere(bent, stereo), c = map_to_sphere(bent, tube);
+  CHECK(a.report.initial_map == "tube");
+  CHECK(b.report.initial_map == "stereographic");
+  CHECK(b.report.mobius_residual < 1e-2);
+  CHECK(c.report.initial_map == "tube");
+  require_bijective(round, a);
+  require_bijective(bent, b);
+  require_bijective(bent, c);
+  // The report's JSON carries the counts a user checks.
+  const nlohmann::json j = c.report.to_json();
+  CHECK(j.at("quality").at("flipped") == 0);
+  CHECK(j.at("quality").at("degenerate") == 0);
+  CHECK(j.at("status") == "ok");
 }
