@@ -2,8 +2,11 @@
 /// \file sphere_locator.h
 /// Point location in a sphere map (pipeline step 5 of ../shared/docs/METHOD.md): which spherical
 /// triangle holds a direction, with which barycentric coordinates, and where that is on the
-/// muscle. The thesis tested every triangle (O(N T)); here a CGAL AABB tree over the chord
-/// triangles answers a ray from the centre, and exact orientation predicates decide the face.
+/// muscle. The thesis tested every triangle (O(N T)). Here a query walks from a start face stored
+/// per cube-map cell across the edges whose plane through the centre has the point on its
+/// negative side (a visibility walk with exact orientation predicates, a few steps); a CGAL AABB
+/// tree over the chord triangles, queried with the ray from the centre, seeds empty cells,
+/// resolves points exactly on edges and vertices, and is the fallback should a walk not finish.
 
 #include "geometry/mesh.h"
 #include "morph/surface_query.h"

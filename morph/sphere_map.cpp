@@ -36,6 +36,9 @@ void SphereMapOptions::validate() const {
   if (relax_max_iterations < 1) bad("relax_max_iterations", std::to_string(relax_max_iterations), "must be >= 1");
   if (relax_restarts < 0) bad("relax_restarts", std::to_string(relax_restarts), "must be >= 0");
   if (!(tube_elongation >= 0.0)) bad("tube_elongation", std::to_string(tube_elongation), "must be >= 0");
+  if (!(reweight_exponent > 0.0 && reweight_exponent <= 2.0))
+    bad("reweight_exponent", std::to_string(reweight_exponent), "must be in (0, 2]");
+  if (!(reweight_target >= 0.0)) bad("reweight_target", std::to_string(reweight_target), "must be >= 0");
   if (reweight_rounds < 0) bad("reweight_rounds", std::to_string(reweight_rounds), "must be >= 0");
   if (untangle_sweeps < 0) bad("untangle_sweeps", std::to_string(untangle_sweeps), "must be >= 0");
   if (relax_threshold_lowerings < 0)
@@ -101,7 +104,7 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
       if (best_bad == 0) break;
     }
     // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
-    // mean of (spherical share / surface share)^0.5 of its faces, so crowded regions pull less
+    // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
     // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
     // positive weights, hence bijective in the plane; a round is kept only when the lifted map
     // has no bad triangle and a lower mean |log area ratio|.
@@ -118,9 +121,9 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
       };
       std::vector<double> ratio(mesh.triangles.size()), scale(mesh.triangles.size(), 1.0);
       double current = log_mean(best.sphere, &ratio);
-      for (int round = 0; round < options.reweight_rounds; ++round) {
+      for (int round = 0; round < options.reweight_rounds && current > options.reweight_target; ++round) {
         for (std::size_t f = 0; f < scale.size(); ++f)
-          scale[f] = std::clamp(scale[f] * std::sqrt(std::max(ratio[f], 1e-12)), 1e-8, 1e8);
+          scale[f] = std::clamp(scale[f] * std::pow(std::max(ratio[f], 1e-12), options.reweight_exponent), 1e-8, 1e8);
         detail::TutteLift next = tube_embedder.lift(&scale);
         const long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
         std::vector<double> next_ratio(mesh.triangles.size());

@@ -66,8 +66,14 @@ struct SphereMapOptions {
   /// better, above it the tube start). Either way the other start is tried when the first is not a bijection.
   double tube_elongation = 1.0;
   /// Tutte reweighting rounds after a tube start (default 8): edge weights times the geometric
-  /// mean of sqrt(area ratio) of their faces, kept while the mean |log area ratio| falls.
+  /// mean of (area ratio)^reweight_exponent of their faces, kept while the mean |log area ratio|
+  /// falls.
   int reweight_rounds = 8;
+  /// Exponent of the area ratio in the reweighting (default 1, a full step; measured on the
+  /// LHDL gluteus maximus: mean |log area ratio| 0.62 -> 0.045 in 8 rounds, 0.11 with 0.5).
+  double reweight_exponent = 1.0;
+  /// Reweighting stops once the mean |log area ratio| is below this (default 0.05).
+  double reweight_target = 0.05;
   /// Sweeps of local untangling applied to a start with flipped triangles (default 50).
   int untangle_sweeps = 50;
   /// Largest number of Moebius centring steps (default 60).
