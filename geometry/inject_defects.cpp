@@ -864,6 +864,10 @@ PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t see
   return soup;
 }
 
+PolygonSoup inject_random_combination(const TriangleMesh& mesh, std::uint64_t seed, int count, DefectLog* log) {
+  return inject_random_combination(to_soup(mesh), seed, count, log);
+}
+
 std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t step) {
   // SplitMix64 (Steele, Lea, Flood 2014) applied twice: once to the seed, once with the step.
   auto mix = [](std::uint64_t x) {

@@ -100,6 +100,10 @@ PolygonSoup inject(const TriangleMesh& mesh, DefectKind kind, std::uint64_t seed
 PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t seed, int count,
                                       DefectLog* log = nullptr);
 
+/// Same as above for a triangle mesh (converted with to_soup first).
+PolygonSoup inject_random_combination(const TriangleMesh& mesh, std::uint64_t seed, int count,
+                                      DefectLog* log = nullptr);
+
 /// An independent seed for sub-step `step` of a run seeded with `seed` (SplitMix64 of both), so
 /// that chained injections do not share random streams.
 std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t step);

@@ -20,6 +20,7 @@ namespace fascicle {
 namespace detail {
 
 std::string load_file(const std::string& path, const ReadOptions& options) {
+  options.validate();
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw InputError(ErrorCode::file_missing, path + ": cannot open: " + std::strerror(errno));
   struct ::stat info {};
@@ -89,6 +90,11 @@ void append_int(std::string& out, long long value) {
 }
 
 }  // namespace detail
+
+void ReadOptions::validate() const {
+  if (max_elements == 0) throw OptionError("ReadOptions::max_elements must be at least 1 (got 0)");
+  if (max_file_bytes == 0) throw OptionError("ReadOptions::max_file_bytes must be at least 1 (got 0)");
+}
 
 MeshFormat mesh_format_from_path(const std::string& path) {
   const std::string ext = lower_extension(path);

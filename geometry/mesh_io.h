@@ -34,6 +34,9 @@ struct ReadOptions {
   std::uint64_t max_elements = 100'000'000;
   /// Largest file size read, bytes (default 4 GiB).
   std::uint64_t max_file_bytes = 4ULL << 30;
+
+  /// Throws OptionError naming the field when a limit is 0 (nothing could be read).
+  void validate() const;
 };
 
 /// Format for a path from its extension: off, obj, stl, ply, vtk, txt (thesis).
@@ -48,7 +51,10 @@ MeshFormat mesh_format_from_path(const std::string& path);
 /// Throws InputError with code file_missing, file_empty (also when the file holds no face),
 /// unknown_format, truncated, index_out_of_range, bad_number, too_large or malformed, and a
 /// one-line message naming the file and the line (text) or byte offset (binary). A declared
-/// count is checked against the file size and options.max_elements before anything is allocated.
+/// count is checked before anything is allocated: too_large when it exceeds
+/// options.max_elements or cannot fit in the whole file even at the smallest size of one
+/// element; truncated when the file then ends before the declared data.
+/// OBJ: an index must refer to a vertex defined above the face (as the format requires).
 PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& options = {});
 
 /// Reads polylines from `path`: .vtk (legacy polydata LINES; scalar CELL_DATA arrays of the
@@ -57,11 +63,22 @@ PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& option
 Polylines read_polylines(const std::string& path, const ReadOptions& options = {});
 
 /// Writes a triangle mesh to `path`, format by extension (off, obj, stl, ply, vtk), atomically.
-/// Throws IoError (output_failed) or InputError(unknown_format) for an unsupported extension.
+/// - .off / .obj / .vtk (legacy ASCII POLYDATA, POINTS double + POLYGONS): text, coordinates with
+///   max_digits10, so reading back gives the same doubles;
+/// - .ply: binary_little_endian, `double x y z`, `list uchar int vertex_indices` (exact);
+/// - .stl: binary, float32 coordinates and unit facet normals, an 80-byte header that does not
+///   start with "solid".
+/// Throws InputError(unknown_format) for an unsupported extension before anything is written,
+/// IoError (output_failed) when the file cannot be written, Error(internal) when a triangle
+/// index is out of range or a position is not finite.
 void write_triangle_mesh(const std::string& path, const TriangleMesh& mesh);
 
-/// Writes polylines to `path`: .vtk (legacy polydata LINES with the cell data arrays) or
-/// .obj (`l` elements), atomically.
+/// Writes polylines to `path`, atomically: .vtk (legacy ASCII POLYDATA: POINTS double, LINES,
+/// and CELL_DATA with one `SCALARS <name> double 1` / `LOOKUP_TABLE default` array per
+/// cell_data entry; blanks in names become '_') or .obj (`v` and `l` elements; cell data is not
+/// written). Throws InputError(unknown_format) for another extension before anything is
+/// written, IoError when the file cannot be written, Error(internal) when a cell array does not
+/// hold one value per line or a value is not finite.
 void write_polylines(const std::string& path, const Polylines& lines);
 
 }  // namespace fascicle

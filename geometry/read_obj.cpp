@@ -29,6 +29,7 @@ int corner_index(const ParseCursor& in, std::string_view token, std::size_t poin
 
 ObjData read_obj_data(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   in.set_comment('#');
   in.set_line_continuation(true);
   const std::uint64_t limit = std::min<std::uint64_t>(options.max_elements, INT_MAX);

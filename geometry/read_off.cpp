@@ -18,6 +18,7 @@ bool is_digit_start(std::string_view t) {
 
 PolygonSoup read_off(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   in.set_comment('#');
 
   std::string_view first = in.token_any();

@@ -132,6 +132,7 @@ int property_index(const Element& e, std::string_view name) {
 
 PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
+  in.skip_byte_order_mark();
 
   // ---- header ----
   const std::string_view magic = in.rest_of_line();

@@ -11,6 +11,7 @@ namespace fascicle {
 std::vector<Vec3> read_points(const std::string& path, const ReadOptions& options) {
   const std::string data = detail::load_file(path, options);
   detail::ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   in.set_comment('#');
   std::vector<Vec3> points;
   for (;;) {

@@ -11,8 +11,10 @@
 
 namespace fascicle {
 
-/// Reads landmark points. Throws InputError (file_missing, file_empty when no point is given,
-/// bad_number, malformed, too_large) naming the file and line.
+/// Reads landmark points (#points, file units, usually mm). A line holding other than three
+/// numbers (before an optional comment) is malformed. Throws InputError (file_missing,
+/// file_empty when no point is given, bad_number, malformed, too_large when there are more than
+/// options.max_elements points or the file exceeds options.max_file_bytes) naming the file and line.
 std::vector<Vec3> read_points(const std::string& path, const ReadOptions& options = {});
 
 }  // namespace fascicle

@@ -20,7 +20,7 @@ bool iequals(std::string_view a, std::string_view b) {
 }
 
 bool starts_with_solid(std::string_view data) {
-  std::size_t p = 0;
+  std::size_t p = data.substr(0, 3) == "\xEF\xBB\xBF" ? 3 : 0;
   while (p < data.size() && std::isspace(static_cast<unsigned char>(data[p]))) ++p;
   if (data.size() - p < 5 || !iequals(data.substr(p, 5), "solid")) return false;
   return data.size() - p == 5 || std::isspace(static_cast<unsigned char>(data[p + 5]));
@@ -68,8 +68,10 @@ PolygonSoup read_binary_stl(const std::string& path, std::string_view data, cons
   return soup;
 }
 
+/// Facets are limited by options.max_elements, as in binary STL (each gives 3 points).
 PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   const std::uint64_t limit = std::min<std::uint64_t>(options.max_elements, INT_MAX);
   PolygonSoup soup;
   bool in_solid = false, in_facet = false, in_loop = false;
@@ -79,8 +81,8 @@ PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const
     if (t.empty()) break;
     if (iequals(t, "vertex")) {
       if (!in_loop) in.fail(ErrorCode::malformed, "'vertex' outside 'outer loop'");
-      if (soup.points.size() >= limit)
-        in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " vertices");
+      if (soup.points.size() >= static_cast<std::size_t>(INT_MAX))
+        in.fail(ErrorCode::too_large, "more than " + std::to_string(INT_MAX) + " vertices");
       const double x = in.number("x coordinate", false);
       const double y = in.number("y coordinate", false);
       const double z = in.number("z coordinate", false);

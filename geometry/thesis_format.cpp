@@ -43,6 +43,7 @@ int index_in_line(detail::ParseCursor& in, std::size_t point_count) {
 ThesisModel read_thesis_model(const std::string& path, const ReadOptions& options) {
   const std::string data = detail::load_file(path, options);
   detail::ParseCursor in(path, data);
+  in.skip_byte_order_mark();
   in.set_comment('#');
   in.skip_space_and_comments();
   if (in.at_end()) in.fail(ErrorCode::file_empty, "no content (only blanks and comments)");

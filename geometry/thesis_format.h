@@ -39,11 +39,17 @@ struct ThesisModel {
   std::vector<int> insertion;         ///< insertion-area point indices
 };
 
-/// Reads a thesis-format file. The declared surface-point count O must equal the number of 'm'
-/// lines. Throws InputError (codes as read_polygon_soup) naming the file and line.
+/// Reads a thesis-format file. Indices in the file are 0-based; every section (counts included)
+/// is required, one record per line; '#' starts a comment. The declared surface-point count O
+/// must equal the number of 'm' lines. Throws InputError (codes as read_polygon_soup: truncated
+/// when a section is missing or short, index_out_of_range, bad_number, too_large, malformed)
+/// naming the file and line.
 ThesisModel read_thesis_model(const std::string& path, const ReadOptions& options = {});
 
-/// Writes a thesis-format file atomically, coordinates with max_digits10.
+/// Writes a thesis-format file atomically, coordinates and stiffnesses with max_digits10, the
+/// surface count O computed from `surface`. Throws IoError when the file cannot be written,
+/// Error(internal) when `surface` does not hold one flag per point, an index is out of range
+/// or a value is not finite.
 void write_thesis_model(const std::string& path, const ThesisModel& model);
 
 }  // namespace fascicle

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <new>
+#include <random>
 
 using namespace fascicle;
 using fascicle::test::TempDir;
@@ -28,6 +29,13 @@ void* operator new(std::size_t n) {
   if (g_tracking.load(std::memory_order_relaxed) && n > g_largest.load(std::memory_order_relaxed)) g_largest = n;
   if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
   throw std::bad_alloc();
+}
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  try {
+    return ::operator new(n);
+  } catch (...) {
+    return nullptr;
+  }
 }
 // GCC flags free() on memory from a replaced operator new; here both sides are malloc/free.
 #pragma GCC diagnostic push
@@ -309,6 +317,34 @@ TEST_CASE("error too_large: limits from ReadOptions", "[geometry][io][errors]") 
   require_soup_error(dir.file("s.stl"), ErrorCode::too_large, "byte 80", small);
   write_bytes(dir.file("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n");
   require_soup_error(dir.file("m.obj"), ErrorCode::too_large, "line 4", small);
+  // The limit counts points and faces, not the values that store them (3 per point, 4 per cell).
+  ReadOptions four;
+  four.max_elements = 4;
+  write_bytes(dir.file("t.vtk"), binary_vtk_tetra());
+  CHECK(read_polygon_soup(dir.file("t.vtk"), four).polygons.size() == 4);
+  CHECK(read_polygon_soup(dir.file("t.off"), four).polygons.size() == 4);
+  CHECK(read_polygon_soup(dir.file("s.stl"), four).polygons.size() == 4);  // STL counts facets
+  std::string ascii_stl = "solid x\n";
+  for (int f = 0; f < 4; ++f) ascii_stl += "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+  write_bytes(dir.file("a.stl"), ascii_stl + "endsolid x\n");
+  CHECK(read_polygon_soup(dir.file("a.stl"), four).polygons.size() == 4);
+  four.max_elements = 3;
+  const std::size_t points_data = binary_vtk_tetra().find("float\n") + 6;
+  require_soup_error(dir.file("t.vtk"), ErrorCode::too_large, "byte " + std::to_string(points_data), four);
+  require_soup_error(dir.file("a.stl"), ErrorCode::too_large, "line 28", four);  // the 4th endloop: 1 + 3 * 7 + 6
+}
+
+TEST_CASE("ReadOptions::validate names the bad field", "[geometry][io][errors]") {
+  TempDir dir;
+  write_bytes(dir.file("t.off"), tetra_off);
+  ReadOptions options;
+  CHECK_NOTHROW(options.validate());
+  options.max_elements = 0;
+  CHECK_THROWS_WITH(read_polygon_soup(dir.file("t.off"), options), Catch::Contains("max_elements"));
+  CHECK_THROWS_AS(read_points(dir.file("t.off"), options), OptionError);
+  options = ReadOptions{};
+  options.max_file_bytes = 0;
+  CHECK_THROWS_WITH(options.validate(), Catch::Contains("max_file_bytes"));
 }
 
 TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors]") {
@@ -317,6 +353,10 @@ TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors
   require_soup_error(dir.file("m.off"), ErrorCode::malformed, "line 6");
   write_bytes(dir.file("m2.off"), "OFF\n3 1 0\n0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   require_soup_error(dir.file("m2.off"), ErrorCode::malformed, "line 3");
+  write_bytes(dir.file("bin.off"), "OFF BINARY\n");
+  require_soup_error(dir.file("bin.off"), ErrorCode::malformed, "line 1");
+  write_bytes(dir.file("4d.off"), "4OFF\n1 0 0\n0 0 0 1\n");
+  require_soup_error(dir.file("4d.off"), ErrorCode::malformed, "line 1");
   write_bytes(dir.file("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n");
   require_soup_error(dir.file("m.obj"), ErrorCode::malformed, "line 4");
   write_bytes(dir.file("m.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n");
@@ -334,4 +374,91 @@ TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors
   require_error([&] { read_thesis_model(dir.file("o.txt")); }, ErrorCode::malformed, dir.file("o.txt"), "line 1");
   write_bytes(dir.file("m.xyz"), "1 2 3 4\n");
   require_error([&] { read_points(dir.file("m.xyz")); }, ErrorCode::malformed, dir.file("m.xyz"), "line 1");
+}
+
+// ---- corrupted files: never a crash, a hang or another exception type -----------------------
+
+namespace {
+
+std::vector<std::pair<std::string, std::string>> seed_files() {
+  std::string stl_ascii = "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n";
+  std::string ply_ascii = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                          "element face 2\nproperty list uchar int vertex_indices\nelement tristrips 1\n"
+                          "property list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"
+                          "6 0 1 2 -1 2 3\n";
+  std::string ply_be = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+                       "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  for (int v = 0; v < 3; ++v)
+    for (int c = 0; c < 3; ++c) put<double>(ply_be, v == c ? 1.0 : 0.0, true);
+  put<std::uint8_t>(ply_be, 3);
+  for (int i : {0, 1, 2}) put<std::int32_t>(ply_be, i, true);
+  std::string vtk_ascii = "# vtk DataFile Version 3.0\nt\n\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 1 1 0\n"
+                          "LINES 1 3\n2 0 3\nPOLYGONS 1 4\n3 0 1 2\nTRIANGLE_STRIPS 1 4\n3 1 3 2\nCELL_DATA 3\n"
+                          "SCALARS a float 1\nLOOKUP_TABLE default\n1 2 3\n";
+  return {{"a.off", tetra_off},
+          {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1/1 2/2 3/3\nf -1 -2 \\\n -3\nl 1 2\n"},
+          {"a.stl", stl_ascii},
+          {"b.stl", binary_stl(3, "solid header")},
+          {"a.ply", ply_ascii},
+          {"b.ply", binary_ply_tetra()},
+          {"c.ply", ply_be},
+          {"a.vtk", vtk_ascii},
+          {"b.vtk", binary_vtk_tetra()},
+          {"a.txt", "4 3\n0 0 0 m\n1 0 0 m\n0 1 0 m\n0.2 0.2 0.2 i\n1\n0 1 2\n1\n0 3 1.5\n1\n0 3\n1\n0\n1\n2\n"}};
+}
+
+std::string mutate(const std::string& original, std::mt19937& rng) {
+  std::string s = original;
+  const auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
+  const char alphabet[] = "0123456789-+.eE \n\\/#abcOFFnanif\xff";
+  const int edits = 1 + static_cast<int>(pick(3));
+  for (int e = 0; e < edits && !s.empty(); ++e) {
+    switch (pick(5)) {
+      case 0: s.resize(pick(s.size())); break;                                         // truncate
+      case 1: s[pick(s.size())] = static_cast<char>(pick(256)); break;                  // random byte
+      case 2: s[pick(s.size())] = alphabet[pick(sizeof(alphabet) - 1)]; break;          // plausible char
+      case 3: s.insert(pick(s.size()), 1, alphabet[pick(sizeof(alphabet) - 1)]); break;  // insertion
+      default: {                                                                         // a huge count
+        const std::size_t at = pick(s.size());
+        s.insert(at, pick(2) ? "999999999999" : "2147483647");
+      }
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("corrupted files give an InputError or a valid soup, nothing else", "[geometry][io][errors][fuzz]") {
+  TempDir dir;
+  std::mt19937 rng(20111);  // fixed seed: the same corruptions on every run
+  std::size_t errors = 0, successes = 0;
+  for (const auto& [name, content] : seed_files()) {
+    const std::string path = dir.file(name);
+    write_bytes(path, content);
+    {
+      INFO(name);
+      REQUIRE_NOTHROW(read_polygon_soup(path));  // the seeds themselves are valid
+    }
+    for (int round = 0; round < 400; ++round) {
+      const std::string bad = mutate(content, rng);
+      std::filesystem::remove(path);  // rewriting by truncation makes ext4 flush on close: slow
+      write_bytes(path, bad);
+      try {
+        const PolygonSoup soup = read_polygon_soup(path);
+        for (const Vec3& p : soup.points) REQUIRE(p.allFinite());
+        for (const auto& polygon : soup.polygons)
+          for (int i : polygon) REQUIRE((i >= 0 && static_cast<std::size_t>(i) < soup.points.size()));
+        ++successes;
+      } catch (const InputError& e) {
+        const std::string message = e.what();
+        INFO(name << ": " << message);
+        REQUIRE(message.rfind(path + ": ", 0) == 0);
+        REQUIRE(message.find('\n') == std::string::npos);
+        ++errors;
+      }
+    }
+  }
+  CHECK(errors > 1000);  // most corruptions are caught
+  CHECK(successes > 0);  // some are harmless (a changed digit)
 }

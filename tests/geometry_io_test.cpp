@@ -228,6 +228,20 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
   }
 }
 
+TEST_CASE("a UTF-8 byte order mark does not hide the first statement", "[geometry][io]") {
+  TempDir dir;
+  const std::string bom = "\xEF\xBB\xBF";
+  write_bytes(dir.file("b.obj"), bom + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  CHECK(read_polygon_soup(dir.file("b.obj")).points.size() == 3);
+  write_bytes(dir.file("b.off"), bom + "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  CHECK(read_polygon_soup(dir.file("b.off")).polygons == Polys{{0, 1, 2}});
+  write_bytes(dir.file("b.stl"), bom + "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+                                       "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
+  CHECK(read_polygon_soup(dir.file("b.stl")).polygons == Polys{{0, 1, 2}});
+  write_bytes(dir.file("b.xyz"), bom + "1 2 3\n");
+  CHECK(read_points(dir.file("b.xyz")) == std::vector<Vec3>{Vec3(1, 2, 3)});
+}
+
 // ---------------------------------------------------------------------------------------------
 // OBJ
 
@@ -413,6 +427,26 @@ TEST_CASE("VTK 5.1 OFFSETS/CONNECTIVITY cells", "[geometry][io][vtk]") {
               "METADATA\nINFORMATION 0\n\n"
               "POLYGONS 3 7\nOFFSETS vtktypeint64\n0 3 7\nCONNECTIVITY vtktypeint64\n0 1 2 1 3 2 0\n");
   CHECK(read_polygon_soup(dir.file("n.vtk")).polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}});
+}
+
+TEST_CASE("VTK 5.1 binary OFFSETS/CONNECTIVITY with 64-bit indices", "[geometry][io][vtk]") {
+  TempDir dir;
+  std::string s = "# vtk DataFile Version 5.1\nnew\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n";
+  for (int v = 0; v < 4; ++v)
+    for (int c = 0; c < 3; ++c) put<float>(s, static_cast<float>(v == c + 1), true);
+  s += "\nPOLYGONS 3 7\nOFFSETS vtktypeint64\n";
+  for (std::int64_t o : {0, 3, 7}) put<std::int64_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint64\n";
+  for (std::int64_t i : {0, 1, 2, 1, 3, 2, 0}) put<std::int64_t>(s, i, true);
+  s += "\nTRIANGLE_STRIPS 2 4\nOFFSETS vtktypeint32\n";
+  for (std::int32_t o : {0, 4}) put<std::int32_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint32\n";
+  for (std::int32_t i : {0, 1, 2, 3}) put<std::int32_t>(s, i, true);
+  s += "\n";
+  write_bytes(dir.file("n.vtk"), s);
+  const PolygonSoup soup = read_polygon_soup(dir.file("n.vtk"));
+  CHECK(soup.points[3] == Vec3(0, 0, 1));
+  CHECK(soup.polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}, {0, 1, 2}, {2, 1, 3}});
 }
 
 namespace {

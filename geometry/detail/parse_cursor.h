@@ -87,6 +87,12 @@ class ParseCursor {
   }
 
   // ---- text --------------------------------------------------------------------------------
+  /// Skips a UTF-8 byte order mark at the start of a text file (some Windows exporters write
+  /// one; left in place it would hide the first keyword).
+  void skip_byte_order_mark() {
+    if (pos_ == 0 && data_.size() >= 3 && data_.compare(0, 3, "\xEF\xBB\xBF") == 0) pos_ = 3;
+  }
+
   /// Skips blanks within the line (and `\` continuations when enabled).
   void skip_blanks() {
     while (pos_ < data_.size()) {
