@@ -15,9 +15,10 @@ namespace fascicle {
 /// Options for attachment areas.
 struct AttachmentOptions {
   /// Landmarks farther from the surface than this fraction of the muscle's bounding-box diagonal
-  /// are an error (default 0.05: a few millimetres on a 20 cm muscle; segmentation noise is
-  /// well below, a landmark set of another muscle far above).
-  double max_landmark_distance = 0.05;
+  /// are an error (default 0.2). Attachment landmarks sit on bone, not on the muscle surface: the
+  /// LHDL files are up to 29 mm (0.1 of the diagonal) from their muscle; the landmark cloud of a
+  /// wrong muscle (`*.insertion-far.xyz`, about 310 mm) is far above.
+  double max_landmark_distance = 0.2;
   /// Automatic areas: the share of the muscle's extent along its principal direction taken at
   /// each end (default 0.1).
   double end_fraction = 0.1;

@@ -90,16 +90,27 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     detail::TubeEmbedder tube_embedder(mesh, adjacency, ends);
     detail::TutteLift best;
     long best_bad = -1;
-    for (int attempt = 0; attempt < 2; ++attempt) {
-      const bool tube = (attempt == 0) == tube_first;
-      detail::TutteLift lift = tube ? tube_embedder.lift()
-                                    : detail::tutte_lift(mesh, adjacency, options.anisotropic);
+    // Starts in order of preference; the first without a bad triangle wins, else the one with
+    // the fewest.
+    enum class Start { prism, lambert, stereographic };
+    const std::vector<Start> starts = tube_first ? std::vector<Start>{Start::prism, Start::lambert, Start::stereographic}
+                                                 : std::vector<Start>{Start::stereographic, Start::prism, Start::lambert};
+    std::vector<double> scale(mesh.triangles.size(), 1.0);
+    const std::vector<Eigen::Vector2d> uv = tube_embedder.valid() ? tube_embedder.solve() : std::vector<Eigen::Vector2d>{};
+    detail::TubeFold best_fold = detail::TubeFold::prism;
+    for (const Start start_kind : starts) {
+      const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
+      detail::TutteLift lift = start_kind == Start::stereographic
+                                   ? detail::tutte_lift(mesh, adjacency, options.anisotropic)
+                                   : tube_embedder.lift(uv, fold);
       if (lift.sphere.empty()) continue;
-      if (!tube) lift.kind = "stereographic";
-      const long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+      if (start_kind == Start::stereographic) lift.kind = "stereographic";
+      long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+      if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
       if (best_bad < 0 || bad < best_bad) {
         best = std::move(lift);
         best_bad = bad;
+        best_fold = fold;
       }
       if (best_bad == 0) break;
     }
@@ -108,7 +119,7 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
     // positive weights, hence bijective in the plane; a round is kept only when the lifted map
     // has no bad triangle and a lower mean |log area ratio|.
-    if (best.kind == "tube" && options.reweight_rounds > 0) {
+    if (best.kind != "stereographic" && options.reweight_rounds > 0) {
       auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
         double sum = 0.0;
         for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
@@ -119,13 +130,14 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
         }
         return sum / static_cast<double>(mesh.triangles.size());
       };
-      std::vector<double> ratio(mesh.triangles.size()), scale(mesh.triangles.size(), 1.0);
+      std::vector<double> ratio(mesh.triangles.size());
       double current = log_mean(best.sphere, &ratio);
       for (int round = 0; round < options.reweight_rounds && current > options.reweight_target; ++round) {
         for (std::size_t f = 0; f < scale.size(); ++f)
           scale[f] = std::clamp(scale[f] * std::pow(std::max(ratio[f], 1e-12), options.reweight_exponent), 1e-8, 1e8);
-        detail::TutteLift next = tube_embedder.lift(&scale);
-        const long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
+        detail::TutteLift next = tube_embedder.lift(tube_embedder.solve(&scale), best_fold);
+        long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
+        if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, next.sphere, 12);
         std::vector<double> next_ratio(mesh.triangles.size());
         const double value = log_mean(next.sphere, &next_ratio);
         // Better means fewer bad triangles, or as few and less distortion.

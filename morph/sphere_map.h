@@ -128,7 +128,7 @@ struct SphereMapReport {
   SphereQuality quality;
   std::string initial_map;       ///< tutte: "stereographic" (one triangle cut) or "tube" (cut end to end)
   double elongation = 0.0;       ///< tutte: (end-to-end edge distance)^2 / area
-  int reweight_rounds = 0;       ///< tutte: reweighting rounds kept
+  int reweight_rounds = 0;       ///< tutte: reweighting rounds kept after the lift
   int cut_face = -1;             ///< tutte: the triangle cut out (it covers the north pole)
   double lift_margin = 0.0;      ///< tutte: power ratio of the lift (> 1 guarantees orientation)
   int mobius_steps = 0;          ///< tutte: Moebius centring steps taken

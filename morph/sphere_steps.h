@@ -59,21 +59,32 @@ TutteLift tutte_lift(const TriangleMesh& mesh, const MeshAdjacency& adjacency, b
 
 /// Tube map for long shapes: the mesh is cut along a shortest path between its two ends, the
 /// disk embedded by Tutte's method into a convex hexagon whose two long sides are the two banks of
-/// the cut (placed by arc length), and the hexagon mapped to the sphere by Lambert's cylindrical
-/// equal-area projection (longitude from x, z = cos(polar angle) linear in y), so a uniform tube
-/// lands with uniform area. The banks both become the date line. Triangles at the poles may come
-/// out flipped; the caller checks and untangles. Built once (cut, weights, symbolic
+/// the cut (placed by arc length), and the hexagon carried to the sphere (TubeFold). The banks
+/// both become the date line. Triangles near the poles (where the hexagon's apex angle is opened
+/// to a full turn) may come out flipped; the caller checks, untangles, tries the other fold. Built once (cut, weights, symbolic
 /// factorisation); lift() solves again for new weight factors.
+/// How the tube map's hexagon is carried to the sphere.
+enum class TubeFold {
+  prism,    ///< folded onto a capped prism and projected centrally (keeps orientation per piece)
+  lambert,  ///< Lambert cylindrical equal-area (longitude x, z linear in y)
+};
+
 class TubeEmbedder {
  public:
   TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adjacency, const std::array<int, 2>& ends);
   ~TubeEmbedder();
   /// False when the ends are adjacent (no tube to cut).
   bool valid() const;
+  /// Planar positions (hexagon) of the cut mesh's vertices (#V originals, then the copies).
   /// `face_scale` (optional, #F positive factors) multiplies each edge's weight by the geometric
   /// mean of its two faces' factors: the reweighting rounds use it to let crowded regions grow.
   /// Throws SolverError when the factorisation fails.
-  TutteLift lift(const std::vector<double>* face_scale = nullptr);
+  std::vector<Eigen::Vector2d> solve(const std::vector<double>* face_scale = nullptr);
+  /// Mean |log(planar area share / surface share)| of a solve; `ratio` receives each face's.
+  double planar_log_ratio(const std::vector<Eigen::Vector2d>& uv, const std::vector<double>& shares,
+                          std::vector<double>& ratio) const;
+  /// The sphere positions of a solve.
+  TutteLift lift(const std::vector<Eigen::Vector2d>& uv, TubeFold fold) const;
 
  private:
   struct Impl;
@@ -84,6 +95,14 @@ class TubeEmbedder {
 /// centroid of its neighbours when that raises the smallest det of its triangles; up to
 /// `max_sweeps` sweeps. Returns the number of non-positive triangles left.
 long untangle(const TriangleMesh& mesh, const MeshAdjacency& adjacency, std::vector<Vec3>& sphere, int max_sweeps);
+
+/// Re-embeds each cluster of flipped or degenerate triangles: the cluster grown by 1..max_rings
+/// rings is mapped to the gnomonic chart at its centre (great circles are straight lines there,
+/// so planar and geodesic orientation agree), its inner vertices are placed by a Tutte solve
+/// with the region's outer vertices fixed, and the result is kept when every touched triangle is
+/// valid. Returns the number of bad triangles left.
+long reembed_patches(const TriangleMesh& mesh, const MeshAdjacency& adjacency, std::vector<Vec3>& sphere,
+                     int max_rings);
 
 /// Moebius centring: repeatedly applies the sphere automorphism that moves the area centroid
 /// c = sum_t share_t * centroid_t towards the centre, x -> (1 - |c|^2)(x - c) / |x - c|^2 - c,

@@ -1,5 +1,5 @@
 // The tube map for long muscles: cut along a shortest path between the two ends, Tutte-embed the
-// disk into a convex hexagon, lift by Lambert's cylindrical equal-area projection.
+// disk into a convex hexagon, fold the hexagon onto a capped prism and project it centrally.
 #include "geometry/errors.h"
 #include "morph/sphere_steps.h"
 
@@ -10,6 +10,57 @@
 #include <cmath>
 
 namespace fascicle::detail {
+namespace {
+
+/// Height of the hexagon's cap triangles (its sides run from y = h to y = pi - h).
+constexpr double kCapHeight = M_PI / 4.0;
+/// Sides of the prism the hexagon is folded onto.
+constexpr int kPrismSides = 32;
+
+/// The hexagon folded onto a convex polyhedron around the origin, then projected centrally to the
+/// unit sphere. The hexagon's middle band [-pi, pi] x [h, pi - h] is cut into kPrismSides
+/// vertical strips, each mapped affinely onto one side rectangle of a right prism (corners
+/// (cos phi, sin phi, +-zh)); each cap triangle is cut into kPrismSides triangles from its apex,
+/// each mapped affinely onto one face of a pyramid with apex (0, 0, +-za). Both banks x = +-pi
+/// land on the same prism edge and pyramid edge, so they glue. Central projection of a planar
+/// face keeps orientations (great circles are its straight lines), so a mesh triangle inside one
+/// piece keeps its planar orientation exactly; only triangles that straddle a fold can bend,
+/// and their angle is at most 360 / kPrismSides degrees.
+Vec3 hexagon_to_sphere(const Eigen::Vector2d& p) {
+  constexpr double h = kCapHeight, zh = 0.5, za = 1.6;
+  const int k = kPrismSides;
+  auto corner = [&](int i, double z) {
+    const double phi = -M_PI + 2.0 * M_PI * i / k;
+    return Vec3(std::cos(phi), std::sin(phi), z);
+  };
+  auto strip = [&](double x, double& u) {
+    const double s = std::clamp((x + M_PI) / (2.0 * M_PI) * k, 0.0, static_cast<double>(k));
+    const int i = std::min(k - 1, static_cast<int>(s));
+    u = s - i;
+    return i;
+  };
+  const double x = std::clamp(p.x(), -M_PI, M_PI), y = std::clamp(p.y(), 0.0, M_PI);
+  Vec3 q;
+  if (y >= h && y <= M_PI - h) {
+    double u = 0.0;
+    const int i = strip(x, u);
+    const double v = (y - h) / (M_PI - 2.0 * h);
+    q = (1.0 - u) * ((1.0 - v) * corner(i, zh) + v * corner(i, -zh)) + u * ((1.0 - v) * corner(i + 1, zh) + v * corner(i + 1, -zh));
+  } else {
+    // Cap: the ray from the apex through p meets the band's edge at x * h / depth.
+    const bool top = y < h;
+    const double depth = top ? y : M_PI - y;  // distance from the apex's row
+    const Vec3 apex(0.0, 0.0, top ? za : -za);
+    if (depth <= 0.0) return apex.normalized();
+    double u = 0.0;
+    const int i = strip(x * h / depth, u);
+    const double w = depth / h;  // 0 at the apex, 1 on the band's edge
+    q = (1.0 - w) * apex + w * ((1.0 - u) * corner(i, top ? zh : -zh) + u * corner(i + 1, top ? zh : -zh));
+  }
+  return q.normalized();
+}
+
+}  // namespace
 
 double elongation(const TriangleMesh& mesh, const MeshAdjacency& adj, std::array<int, 2>& ends) {
   const std::vector<double> from0 = edge_distances(mesh, adj, 0);
@@ -29,6 +80,7 @@ struct TubeEmbedder::Impl {
   const TriangleMesh* mesh = nullptr;
   int nv = 0, n_cut = 0, n = 0;
   std::vector<int> path;
+  std::vector<Triangle> cut;                  // the mesh's triangles, one bank on the copies
   std::vector<Eigen::Vector2d> uv;            // boundary positions (fixed), interior filled per solve
   std::vector<int> index;                     // cut vertex -> unknown, -1 when fixed
   Eigen::SparseMatrix<double> weights;        // clamped cotangent weights on the cut mesh
@@ -55,7 +107,8 @@ TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, c
 
   // Split every inner path vertex: faces on one bank (from edge v->after turning back to edge
   // before->v) get the copy nv + i - 1.
-  std::vector<Triangle> cut = mesh.triangles;
+  d.cut = mesh.triangles;
+  std::vector<Triangle>& cut = d.cut;
   for (int i = 1; i + 1 < m; ++i) {
     const int v = d.path[i], before = d.path[i - 1], after = d.path[i + 1];
     const int copy = nv + i - 1;
@@ -77,19 +130,30 @@ TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, c
   }
   const int n_cut = d.n_cut = nv + m - 2;
 
-  // Boundary: s at (0, 0), t at (0, pi), one bank at x = pi, the other at x = -pi, y by arc
-  // length along the path: a convex hexagon.
+  // Boundary: the convex hexagon s = (0, 0), (pi, h), (pi, pi - h), t = (0, pi), (-pi, pi - h),
+  // (-pi, h); one bank runs down its right side s -> (pi, h) -> (pi, pi - h) -> t, the other
+  // down its left side, both placed by arc length along the path.
   d.uv.assign(n_cut, Eigen::Vector2d::Zero());
   std::vector<char> fixed(n_cut, 0);
   const double total = dist[ends[0]];
+  const double h = kCapHeight, slant = std::hypot(M_PI, h), side = M_PI - 2.0 * h;
+  const double outline = 2.0 * slant + side;
   for (int i = 0; i < m; ++i) {
-    const double y = M_PI * (total - dist[d.path[i]]) / total;
+    const double along = outline * (total - dist[d.path[i]]) / total;
+    Eigen::Vector2d p;
+    if (along <= slant)
+      p = Eigen::Vector2d(M_PI, h) * (along / slant);
+    else if (along <= slant + side)
+      p = Eigen::Vector2d(M_PI, h + (along - slant));
+    else
+      p = Eigen::Vector2d(M_PI, M_PI - h) + (Eigen::Vector2d(0.0, M_PI) - Eigen::Vector2d(M_PI, M_PI - h)) *
+                                                 std::min(1.0, (along - slant - side) / slant);
     if (i == 0 || i + 1 == m) {
       d.uv[d.path[i]] = Eigen::Vector2d(0.0, i == 0 ? 0.0 : M_PI);
       fixed[d.path[i]] = 1;
     } else {
-      d.uv[d.path[i]] = Eigen::Vector2d(M_PI, y);
-      d.uv[nv + i - 1] = Eigen::Vector2d(-M_PI, y);
+      d.uv[d.path[i]] = p;
+      d.uv[nv + i - 1] = Eigen::Vector2d(-p.x(), p.y());
       fixed[d.path[i]] = fixed[nv + i - 1] = 1;
     }
   }
@@ -159,11 +223,9 @@ TubeEmbedder::~TubeEmbedder() = default;
 
 bool TubeEmbedder::valid() const { return impl_->n > 0; }
 
-TutteLift TubeEmbedder::lift(const std::vector<double>* face_scale) {
+std::vector<Eigen::Vector2d> TubeEmbedder::solve(const std::vector<double>* face_scale) {
   Impl& d = *impl_;
-  TutteLift lift;
-  lift.kind = "tube";
-  if (!valid()) return lift;
+  if (!valid()) return {};
   // Assemble values: weight w(row, v) scaled by the geometric mean of its faces' factors.
   double* values = d.system.valuePtr();
   std::fill(values, values + d.system.nonZeros(), 0.0);
@@ -191,13 +253,48 @@ TutteLift TubeEmbedder::lift(const std::vector<double>* face_scale) {
   const Eigen::MatrixXd solution = d.solver.solve(rhs);
   if (d.solver.info() != Eigen::Success || !solution.allFinite())
     throw SolverError("sphere map: the tube solve failed or produced NaN");
-  // Lambert cylindrical equal-area: longitude x, z = 1 - 2 y / pi.
+  std::vector<Eigen::Vector2d> uv = d.uv;
+  for (int v = 0; v < d.n_cut; ++v)
+    if (d.index[v] >= 0) uv[v] = solution.row(d.index[v]).transpose();
+  return uv;
+}
+
+double TubeEmbedder::planar_log_ratio(const std::vector<Eigen::Vector2d>& uv, const std::vector<double>& shares,
+                                      std::vector<double>& ratio) const {
+  const Impl& d = *impl_;
+  const std::size_t nf = d.cut.size();
+  ratio.resize(nf);
+  double total = 0.0;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const Triangle& t = d.cut[f];
+    const Eigen::Vector2d u = uv[t[1]] - uv[t[0]], w = uv[t[2]] - uv[t[0]];
+    ratio[f] = std::abs(u.x() * w.y() - u.y() * w.x());
+    total += ratio[f];
+  }
+  double sum = 0.0;
+  for (std::size_t f = 0; f < nf; ++f) {
+    ratio[f] = ratio[f] / total / shares[f];
+    sum += std::abs(std::log(std::max(ratio[f], 1e-300)));
+  }
+  return sum / static_cast<double>(nf);
+}
+
+TutteLift TubeEmbedder::lift(const std::vector<Eigen::Vector2d>& uv, TubeFold fold) const {
+  const Impl& d = *impl_;
+  TutteLift lift;
+  if (uv.empty()) return lift;
   lift.sphere.resize(d.nv);
+  lift.kind = fold == TubeFold::prism ? "tube" : "tube-lambert";
   for (int v = 0; v < d.nv; ++v) {
-    const Eigen::Vector2d p = d.index[v] >= 0 ? Eigen::Vector2d(solution.row(d.index[v]).transpose()) : d.uv[v];
-    const double z = std::clamp(1.0 - 2.0 * p.y() / M_PI, -1.0, 1.0);
-    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-    lift.sphere[v] = Vec3(r * std::cos(p.x()), r * std::sin(p.x()), z);
+    const Eigen::Vector2d& p = uv[v];
+    if (fold == TubeFold::prism) {
+      lift.sphere[v] = hexagon_to_sphere(p);
+    } else {
+      // Lambert's cylindrical equal-area projection: longitude x, z = 1 - 2 y / pi.
+      const double z = std::clamp(1.0 - 2.0 * p.y() / M_PI, -1.0, 1.0);
+      const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+      lift.sphere[v] = Vec3(r * std::cos(p.x()), r * std::sin(p.x()), z);
+    }
   }
   double orientation = 0.0;
   for (const Triangle& t : d.mesh->triangles)
