@@ -77,7 +77,8 @@ struct NeedsWrap {
 
 class RepairPipeline {
  public:
-  RepairPipeline(const RepairOptions& options, RepairReport& report) : options_(options), report_(report) {}
+  RepairPipeline(const RepairOptions& options, RepairReport& report, double diagonal)
+      : options_(options), report_(report), diagonal_(diagonal) {}
 
   // Runs `body` as a named step; it returns how many elements it changed.
   void step(const std::string& name, const std::function<long()>& body, const std::string& note = {}) {
@@ -146,51 +147,93 @@ class RepairPipeline {
     return out;
   }
 
+  // Alpha wrapping from coarse to fine: the coarsest level is tried first (fast, most likely
+  // genus 0; if it is not, coarser alphas up to half the diagonal), then each finer level while
+  // the wrap stays genus 0 and time is left. The finest genus-0 wrap is kept.
   TriangleMesh wrap(const TriangleMesh& cleaned, double diagonal) {
-    double alpha = options_.wrap_alpha * diagonal;
     const double area = surface_area(cleaned);
+    const double finest = options_.wrap_alpha * diagonal;
     const auto wrap_start = Clock::now();
     std::string last_failure;
-    for (int attempt = 0; attempt < options_.wrap_attempts; ++attempt, alpha *= 2.0) {
+
+    auto attempt = [&](double alpha) -> std::optional<TriangleMesh> {
       const double offset = alpha * options_.wrap_offset_ratio;
       // A wrap has about 20 A / alpha^2 faces (measured over the corpus, open sheets included);
       // skip alphas whose wrap would exceed the size budget rather than run for minutes.
-      const double estimate = 20.0 * area / (alpha * alpha);
-      if (estimate > static_cast<double>(options_.max_wrap_faces)) {
+      if (20.0 * area / (alpha * alpha) > static_cast<double>(options_.max_wrap_faces)) {
         last_failure = "wrap at alpha " + std::to_string(alpha) + " would exceed the face budget";
-        continue;
+        return std::nullopt;
       }
       const double left = options_.wrap_seconds - seconds_since(wrap_start);
       if (left <= 0.0) {
-        last_failure += "; the wrap time budget (" + std::to_string(options_.wrap_seconds) + " s) is spent";
-        break;
+        last_failure = "the wrap time budget (" + std::to_string(options_.wrap_seconds) + " s) is spent";
+        return std::nullopt;
       }
-      // An attempt may use half of what is left, so that a coarser (faster) one can follow.
-      const bool last = attempt + 1 == options_.wrap_attempts;
-      std::optional<TriangleMesh> attempt_result;
+      std::optional<TriangleMesh> result;
       step("alpha_wrap", [&] {
-        attempt_result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, last ? left : 0.5 * left);
-        return attempt_result ? static_cast<long>(attempt_result->triangles.size()) : 0L;
+        result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left);
+        return result ? static_cast<long>(result->triangles.size()) : 0L;
       }, "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
-      if (!attempt_result) {
-        report_.steps.back().note += ": stopped at its time limit";
-        last_failure = "wrap at alpha " + std::to_string(alpha) + " ran past its time limit";
-        continue;
+      if (!result) {
+        report_.steps.back().note += ": stopped at the time budget";
+        last_failure = "wrap at alpha " + std::to_string(alpha) + " ran past the time budget";
+        return std::nullopt;
       }
-      TriangleMesh wrapped = std::move(*attempt_result);
-      if (options_.components == ComponentPolicy::largest) wrapped = largest_shell(wrapped);
-      const std::string failure = verify_genus0(wrapped);
-      if (failure.empty()) {
-        report_.fallback_used = true;
-        report_.wrap_alpha = alpha;
-        report_.wrap_offset = offset;
-        return wrapped;
+      if (options_.components == ComponentPolicy::largest) *result = largest_shell(*result);
+      const std::string failure = verify_genus0(*result);
+      if (!failure.empty()) {
+        last_failure = "wrap at alpha " + std::to_string(alpha) + ": " + failure;
+        report_.steps.back().note += ": " + failure;
+        spdlog::debug("{}", last_failure);
+        return std::nullopt;
       }
-      last_failure = "wrap at alpha " + std::to_string(alpha) + ": " + failure;
-      spdlog::debug("{}", last_failure);
+      // A wrap coarse enough to bridge a real hole or handle strays far from the input: that
+      // is not a repair of this mesh.
+      const double stray = detail::one_sided_distance(*result, cleaned, 4000) / diagonal;
+      if (stray > options_.wrap_max_distance) {
+        last_failure = "wrap at alpha " + std::to_string(alpha) + " lies " + std::to_string(stray * 100.0) +
+                       "% of the diagonal away from the input (it bridges a hole or handle)";
+        report_.steps.back().note += ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
+        spdlog::debug("{}", last_failure);
+        return std::nullopt;
+      }
+      report_.steps.back().note += ": genus 0";
+      return result;
+    };
+
+    std::optional<TriangleMesh> best;
+    double best_alpha = 0.0;
+    const double coarsest = finest * std::pow(2.0, options_.wrap_levels - 1);
+    for (double alpha = coarsest; alpha >= finest * (1 - 1e-9); alpha /= 2.0) {
+      if (best) {
+        // Halving alpha makes about four times the faces and takes at least four times as long:
+        // stop refining when that would not fit in what is left of the budget.
+        const double previous = report_.steps.back().seconds;
+        if (4.0 * previous > options_.wrap_seconds - seconds_since(wrap_start)) {
+          report_.steps.back().note += "; finer levels skipped: they would not fit in the time budget";
+          break;
+        }
+      }
+      std::optional<TriangleMesh> result = attempt(alpha);
+      if (result) {
+        best = std::move(result);
+        best_alpha = alpha;
+      } else if (best || seconds_since(wrap_start) >= options_.wrap_seconds) {
+        break;  // a finer wrap opens a handle or runs out of budget: keep the last good one
+      }
     }
-    throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure,
-                        ErrorCode::repair_failed);
+    // Not even the coarsest level is genus 0: coarser alphas, up to half the diagonal.
+    for (double alpha = 2.0 * coarsest; !best && alpha <= 0.5 * diagonal * (1 + 1e-9); alpha *= 2.0) {
+      best = attempt(alpha);
+      best_alpha = alpha;
+      if (!best && seconds_since(wrap_start) >= options_.wrap_seconds) break;
+    }
+    if (!best)
+      throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure, ErrorCode::repair_failed);
+    report_.fallback_used = true;
+    report_.wrap_alpha = best_alpha;
+    report_.wrap_offset = best_alpha * options_.wrap_offset_ratio;
+    return std::move(*best);
   }
 
  private:
@@ -262,6 +305,12 @@ class RepairPipeline {
       report_.steps.push_back({"remove_self_intersections", 0, 0.0, "none found"});
       return;
     }
+    // CT folds are mostly crumpled surface: first untangle them by smoothing the vertices of the
+    // intersecting faces towards their neighbours' centroid (a small, local move), and only where
+    // that fails cut the region out and refill it (PMP::experimental::remove_self_intersections).
+    step("untangle_self_intersections", [&] { return untangle_by_smoothing(mesh); },
+         "vertices smoothed to undo folds");
+    if (!PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh)) return;
     step("remove_self_intersections", [&] {
       std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
       PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
@@ -271,11 +320,59 @@ class RepairPipeline {
       pairs.clear();
       PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
       return before - static_cast<long>(pairs.size());
-    }, "intersecting face pairs resolved");
+    }, "intersecting face pairs resolved by removing and refilling their region");
     if (!CGAL::is_valid_polygon_mesh(mesh) || !CGAL::is_closed(mesh))
       throw NeedsWrap{"removing self-intersections left an open or invalid mesh"};
     if (PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
       throw NeedsWrap{"self-intersections remain after local repair"};
+  }
+
+  // Laplacian smoothing restricted to the neighbourhood of intersecting faces; the neighbourhood
+  // grows by one ring every few rounds. Returns the number of vertices moved (0 when it gave up
+  // and restored the original positions).
+  long untangle_by_smoothing(Mesh& mesh) {
+    constexpr int kRounds = 12;
+    std::vector<std::pair<Mesh::Vertex_index, Point>> original;
+    std::unordered_set<std::uint32_t> moved;
+    for (int round = 0; round < kRounds; ++round) {
+      std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+      PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
+      if (pairs.empty()) break;
+      std::unordered_set<std::uint32_t> region;
+      for (const auto& [f, g] : pairs)
+        for (auto face : {f, g})
+          for (auto v : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) region.insert(v.idx());
+      for (int ring = 0; ring < 1 + round / 4; ++ring) {
+        std::vector<std::uint32_t> grow(region.begin(), region.end());
+        for (auto vi : grow)
+          for (auto w : CGAL::vertices_around_target(mesh.halfedge(Mesh::Vertex_index(vi)), mesh)) region.insert(w.idx());
+      }
+      std::vector<std::pair<Mesh::Vertex_index, Point>> update;
+      for (auto vi : region) {
+        const Mesh::Vertex_index v(vi);
+        double x = 0, y = 0, z = 0;
+        int n = 0;
+        for (auto w : CGAL::vertices_around_target(mesh.halfedge(v), mesh)) {
+          const Point& q = mesh.point(w);
+          x += q.x(), y += q.y(), z += q.z(), ++n;
+        }
+        if (n == 0) continue;
+        const Point& p = mesh.point(v);
+        update.emplace_back(v, Point(0.5 * p.x() + 0.5 * x / n, 0.5 * p.y() + 0.5 * y / n, 0.5 * p.z() + 0.5 * z / n));
+      }
+      for (const auto& [v, p] : update) {
+        if (moved.insert(v.idx()).second) original.emplace_back(v, mesh.point(v));
+        mesh.point(v) = p;
+      }
+    }
+    // Accept only an untangling that stayed local: no vertex moved farther than
+    // untangle_limit of the diagonal (a deep fold is better cut out than smeared).
+    double farthest = 0.0;
+    for (const auto& [v, p] : original) farthest = std::max(farthest, std::sqrt(CGAL::squared_distance(p, mesh.point(v))));
+    if (farthest <= options_.untangle_limit * diagonal_ && !PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
+      return static_cast<long>(moved.size());
+    for (const auto& [v, p] : original) mesh.point(v) = p;  // give up: leave it to the cut-and-fill
+    return 0;
   }
 
   // The largest shell of a wrap by |volume| (a wrap of scattered pieces gives several shells).
@@ -315,6 +412,7 @@ class RepairPipeline {
 
   const RepairOptions& options_;
   RepairReport& report_;
+  double diagonal_;
 
  public:
   /// Corners of the faces dropped with smaller components (for the kept-part distance).
@@ -355,11 +453,11 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
 
   RepairResult result;
   RepairReport& report = result.report;
-  RepairPipeline pipeline(options, report);
+  const double diagonal = bounding_box(soup.points).diagonal();
+  RepairPipeline pipeline(options, report, diagonal);
   // The input census (with its self-intersection count) runs beside the pipeline.
   std::future<MeshCensus> input_census = std::async(std::launch::async, [&soup] { return census_of(soup); });
 
-  const double diagonal = bounding_box(soup.points).diagonal();
   if (!(diagonal > 0.0)) throw TopologyError("all points coincide: nothing to repair", ErrorCode::repair_failed);
 
   WeldResult weld;

@@ -120,6 +120,23 @@ TEST_CASE("writers refuse an unknown extension before writing anything", "[geome
   CHECK(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()) == 0);
 }
 
+TEST_CASE("writers report an unwritable target as IoError and keep an existing file", "[geometry][io]") {
+  TempDir dir;
+  const TriangleMesh mesh = awkward_tetrahedron();
+  try {
+    write_triangle_mesh(dir.file("missing-folder/mesh.off"), mesh);
+    FAIL("no exception");
+  } catch (const IoError& e) {
+    CHECK(e.code() == ErrorCode::output_failed);
+  }
+  const std::string path = dir.file("mesh.obj");
+  write_bytes(path, "old content");
+  TriangleMesh broken = mesh;
+  broken.triangles.push_back({0, 1, 99});  // out of range: refused before anything is written
+  CHECK_THROWS_AS(write_triangle_mesh(path, broken), Error);
+  CHECK(read_bytes(path) == "old content");
+}
+
 TEST_CASE("polylines round-trip through VTK (with cell data) and OBJ", "[geometry][io]") {
   TempDir dir;
   Polylines lines;
@@ -220,6 +237,12 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
     const PolygonSoup s = read_polygon_soup(dir.file("c.off"));
     CHECK(s.points == std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)});
     CHECK(s.polygons == Polys{{0, 1, 2}, {0, 2, 3}});
+  }
+  SECTION("numbers below the double range read as zero; exponents, signs and no leading digit") {
+    write_bytes(dir.file("u.off"), "OFF\n3 1 0\n1e-400 -1E-999 +.5\n-0.25e+1 1. 7E2\n0 0 0\n3 0 1 2\n");
+    const PolygonSoup s = read_polygon_soup(dir.file("u.off"));
+    CHECK(s.points[0] == Vec3(0, 0, 0.5));
+    CHECK(s.points[1] == Vec3(-2.5, 1, 700));
   }
   SECTION("no header word; faces with two indices or repeated indices are kept as stored") {
     write_bytes(dir.file("d.off"), "3 3 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n2 0 1\n3 0 0 1\n");
