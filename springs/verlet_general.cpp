@@ -1,0 +1,197 @@
+// Verlet (Zeleny 2011, formula 3.8) on the general data path: any spring list, stored as
+// compressed rows (each point lists its springs), forces gathered per point into a separate
+// array, then one integration pass. Both passes are TBB-parallel over fixed blocks of points,
+// so results do not depend on the thread count.
+
+#include "geometry/errors.h"
+#include "springs/solvers_internal.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+
+namespace fascicle::springs::detail {
+namespace {
+
+constexpr int kBlock = 4096;  // points per parallel block (fixed: deterministic reductions)
+
+class GeneralVerlet final : public SpringSolver {
+ public:
+  GeneralVerlet(const SpringSystem& system, const SettleOptions& options, bool momentum)
+      : options_(options),
+        coefficients_(momentum ? momentum_coefficients(system) : verlet_coefficients(system, options)),
+        momentum_(momentum) {
+    n_ = static_cast<int>(system.positions.size());
+    fixed_ = system.fixed;
+    row_.assign(n_ + 1, 0);
+    for (const Spring& s : system.springs) {
+      ++row_[s.a + 1];
+      ++row_[s.b + 1];
+    }
+    for (int i = 0; i < n_; ++i) row_[i + 1] += row_[i];
+    neighbour_.resize(row_[n_]);
+    stiffness_.resize(row_[n_]);
+    rest_.resize(row_[n_]);
+    std::vector<int> fill(row_.begin(), row_.end() - 1);
+    for (const Spring& s : system.springs) {
+      for (int end = 0; end < 2; ++end) {
+        const int p = end ? s.b : s.a, q = end ? s.a : s.b;
+        const int slot = fill[p]++;
+        neighbour_[slot] = q;
+        stiffness_[slot] = s.stiffness;
+        rest_[slot] = s.rest;
+      }
+    }
+    x_.resize(3 * static_cast<std::size_t>(n_));
+    for (int i = 0; i < n_; ++i)
+      for (int c = 0; c < 3; ++c) x_[3 * i + c] = system.positions[i][c];
+    prev_ = x_;
+    force_.assign(x_.size(), 0.0);
+    blocks_ = (n_ + kBlock - 1) / kBlock;
+    partial_.assign(std::max(blocks_, 1), 0.0);
+    scale_ = residual_force_scale(system);
+    floor_ = energy_floor(system);
+    initial_energy_ = std::max(energy(), floor_);
+  }
+
+  double step() override {
+    double momentum = 0.0;
+    if (momentum_) {
+      // Nesterov's schedule with gradient restarts, as in the structured path.
+      if (since_restart_ > 0 && power_ < 0.0) {
+        prev_ = x_;
+        since_restart_ = 0;
+      }
+      momentum = static_cast<double>(since_restart_) / (since_restart_ + 3);
+      ++since_restart_;
+    }
+    const double r2 = compute_forces(x_);
+    if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+    const double* a = coefficients_.a.data();
+    const double* b = coefficients_.b.data();
+    tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
+      for (int blk = range.begin(); blk != range.end(); ++blk) {
+        double power = 0.0;
+        const int end = std::min(n_, (blk + 1) * kBlock);
+        for (int i = blk * kBlock; i < end; ++i) {
+          const double bi = momentum_ ? momentum : b[i];
+          for (int c = 0; c < 3; ++c) {
+            const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+            const double v = x_[k] - prev_[k];
+            if (!fixed_[i]) power += force_[k] * v;
+            prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
+          }
+        }
+        partial_[blk] = power;
+      }
+    });
+    power_ = 0.0;
+    for (int blk = 0; blk < blocks_; ++blk) power_ += partial_[blk];
+    std::swap(x_, prev_);
+    ++iteration_;
+    if (iteration_ % options_.energy_interval == 0) check_energy();
+    return std::sqrt(r2) / scale_;
+  }
+
+  double residual() override { return std::sqrt(compute_forces(x_)) / scale_; }
+
+  double energy() override {
+    const double dt2 = coefficients_.dt * coefficients_.dt;
+    tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
+      for (int blk = range.begin(); blk != range.end(); ++blk) {
+        double e = 0.0;
+        const int end = std::min(n_, (blk + 1) * kBlock);
+        for (int i = blk * kBlock; i < end; ++i) {
+          double v2 = 0.0;
+          for (int c = 0; c < 3; ++c) {
+            const double v = x_[3 * i + c] - prev_[3 * i + c];
+            v2 += v * v;
+          }
+          e += 0.5 * coefficients_.mass[i] * v2 / dt2;
+          for (int s = row_[i]; s < row_[i + 1]; ++s) {
+            const int q = neighbour_[s];
+            double l2 = 0.0;
+            for (int c = 0; c < 3; ++c) {
+              const double l = x_[3 * q + c] - x_[3 * i + c];
+              l2 += l * l;
+            }
+            const double stretch = std::sqrt(l2) - rest_[s];
+            e += 0.25 * stiffness_[s] * stretch * stretch;  // each spring is seen from both ends
+          }
+        }
+        partial_[blk] = e;
+      }
+    });
+    double total = 0.0;
+    for (int blk = 0; blk < blocks_; ++blk) total += partial_[blk];
+    return total;
+  }
+
+  std::vector<Vec3> positions() const override {
+    std::vector<Vec3> out(n_);
+    for (int i = 0; i < n_; ++i) out[i] = Vec3(x_[3 * i], x_[3 * i + 1], x_[3 * i + 2]);
+    return out;
+  }
+  std::string backend() const override { return momentum_ ? "momentum-general" : "general"; }
+  double time_step() const override { return coefficients_.dt; }
+  double mean_damping() const override { return coefficients_.mean_damping; }
+
+ private:
+  // Gathers spring forces at `x` into force_; returns the largest squared force at a free point
+  // (NaN/Inf when any force is not finite).
+  double compute_forces(const std::vector<double>& x) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
+      for (int blk = range.begin(); blk != range.end(); ++blk) {
+        double largest = 0.0;
+        const int end = std::min(n_, (blk + 1) * kBlock);
+        for (int i = blk * kBlock; i < end; ++i) {
+          double f[3] = {0.0, 0.0, 0.0};
+          for (int s = row_[i]; s < row_[i + 1]; ++s) {
+            const int q = neighbour_[s];
+            const double l[3] = {x[3 * q] - x[3 * i], x[3 * q + 1] - x[3 * i + 1], x[3 * q + 2] - x[3 * i + 2]};
+            const double len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+            if (len == 0.0) continue;
+            const double w = stiffness_[s] * (len - rest_[s]) / len;
+            for (int c = 0; c < 3; ++c) f[c] += w * l[c];
+          }
+          for (int c = 0; c < 3; ++c) force_[3 * i + c] = f[c];
+          const double f2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+          if (!fixed_[i] && (f2 > largest || std::isnan(f2))) largest = f2;  // NaN sticks
+        }
+        partial_[blk] = largest;
+      }
+    });
+    double largest = 0.0;
+    for (int blk = 0; blk < blocks_; ++blk)
+      if (partial_[blk] > largest || std::isnan(partial_[blk])) largest = partial_[blk];
+    return largest;
+  }
+
+  void check_energy() {
+    const double e = energy();
+    if (!std::isfinite(e) || e > options_.energy_growth_bound * initial_energy_)
+      throw_verlet_divergence(iteration_, e, initial_energy_, coefficients_, options_);
+  }
+
+  SettleOptions options_;
+  VerletCoefficients coefficients_;
+  int n_ = 0, blocks_ = 0, iteration_ = 0;
+  std::vector<char> fixed_;
+  std::vector<int> row_, neighbour_;
+  std::vector<double> stiffness_, rest_;
+  std::vector<double> x_, prev_, force_, partial_;
+  double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
+  bool momentum_ = false;
+  int since_restart_ = 0;
+  double power_ = 0.0;
+};
+
+}  // namespace
+
+std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
+                                                  const SettleOptions& options, bool momentum) {
+  return std::make_unique<GeneralVerlet>(system, options, momentum);
+}
+
+}  // namespace fascicle::springs::detail

@@ -1,0 +1,426 @@
+// The settle solvers: Verlet on both data paths, static local-global; agreement, invariants,
+// stability at extreme parameters, scale invariance, divergence errors.
+
+#include "geometry/errors.h"
+#include "springs/lattice.h"
+#include "springs/settle.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+using namespace fascicle;
+using namespace fascicle::springs;
+
+namespace {
+
+// A template lattice whose surface was moved as the decomposition moves it: a smooth
+// non-affine map of the fixed points (bend + stretch), interior left at template positions.
+Lattice moved_lattice(TemplateKind kind, int fibres, int resolution, SpringModel model) {
+  LatticeOptions options;
+  options.kind = kind;
+  options.fibres = fibres;
+  options.resolution = resolution;
+  options.model = model;
+  Lattice lattice = build_lattice(options);
+  for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
+    if (!lattice.system.fixed[i]) continue;
+    Vec3& p = lattice.system.positions[i];
+    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(),
+             p.z() + 0.15 * p.x() * p.x());
+  }
+  return lattice;
+}
+
+double max_distance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  double d = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, (a[i] - b[i]).norm());
+  return d;
+}
+
+bool all_finite(const std::vector<Vec3>& points) {
+  for (const Vec3& p : points)
+    if (!p.allFinite()) return false;
+  return true;
+}
+
+SettleOptions verlet_options() {
+  SettleOptions options;
+  options.solver = SolverKind::verlet;
+  return options;
+}
+
+}  // namespace
+
+TEST_CASE("structured and general Verlet paths agree to 1e-9", "[springs][solver]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    for (TemplateKind kind : {TemplateKind::pennate, TemplateKind::curved}) {
+      INFO(template_name(kind) << " model-" << static_cast<int>(model));
+      const Lattice lattice = moved_lattice(kind, 90, 11, model);
+      const LatticeShape shape = shape_of(lattice);
+      SettleOptions options = verlet_options();
+      options.tolerance = 0.0;
+      options.max_iterations = 300;
+      options.backend = Backend::structured;
+      SpringSystem structured = lattice.system;
+      const SettleReport a = settle(structured, options, &shape);
+      options.backend = Backend::general;
+      SpringSystem general = lattice.system;
+      const SettleReport b = settle(general, options, &shape);
+      // pennate: every direction's springs have one length (the uniform rows); curved: not
+      CHECK(a.backend == (kind == TemplateKind::pennate ? "structured-uniform" : "structured"));
+      CHECK(b.backend == "general");
+      CHECK(a.iterations == 300);
+      CHECK(b.iterations == 300);
+      // the systems moved a lot, and moved the same way
+      CHECK(max_distance(structured.positions, lattice.system.positions) > 1e-2);
+      CHECK(max_distance(structured.positions, general.positions) <= 1e-9 * std::sqrt(3.0));
+      REQUIRE(a.residual_history.size() == b.residual_history.size());
+      for (std::size_t i = 0; i < a.residual_history.size(); ++i)
+        CHECK(a.residual_history[i] == Approx(b.residual_history[i]).epsilon(1e-9).margin(1e-9));
+    }
+  }
+}
+
+TEST_CASE("fixed points are bitwise unchanged by every solver", "[springs][solver]") {
+  Lattice lattice = moved_lattice(TemplateKind::fanned, 49, 9, SpringModel::model6);
+  // Fix a few interior points too (the structured path takes its checked rows for them).
+  std::mt19937 rng(7);
+  for (int n = 0; n < 20; ++n) lattice.system.fixed[rng() % lattice.system.fixed.size()] = 1;
+  lattice.system.positions[lattice.index(3, 3, 4)] = Vec3(-0.0, 0.5, 0.5);  // a negative zero
+  lattice.system.fixed[lattice.index(3, 3, 4)] = 1;
+  const LatticeShape shape = shape_of(lattice);
+  struct Case { SolverKind solver; Backend backend; StaticMethod method; };
+  for (Case c : {Case{SolverKind::verlet, Backend::structured, StaticMethod::momentum},
+                 Case{SolverKind::verlet, Backend::general, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::general, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::newton},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::local_global}}) {
+    SettleOptions options;
+    options.solver = c.solver;
+    options.backend = c.backend;
+    options.static_method = c.method;
+    options.tolerance = 1e-8;
+    SpringSystem system = lattice.system;
+    const SettleReport report = settle(system, options, &shape);
+    INFO(report.solver << " " << report.backend);
+    CHECK(report.converged);
+    CHECK(report.iterations > 1);
+    for (std::size_t i = 0; i < system.positions.size(); ++i)
+      if (lattice.system.fixed[i])
+        CHECK(std::memcmp(system.positions[i].data(), lattice.system.positions[i].data(), 3 * sizeof(double)) == 0);
+  }
+  // Also through the solver object, not only the one-call wrapper.
+  SettleOptions options;
+  options.backend = Backend::structured;
+  auto solver = make_solver(lattice.system, options, &shape);
+  for (int i = 0; i < 50; ++i) solver->step();
+  const std::vector<Vec3> positions = solver->positions();
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (lattice.system.fixed[i])
+      CHECK(std::memcmp(positions[i].data(), lattice.system.positions[i].data(), 3 * sizeof(double)) == 0);
+}
+
+TEST_CASE("model-26 with nothing fixed returns to its shape after a random displacement", "[springs][solver]") {
+  const Lattice lattice = regular_lattice(5, SpringModel::model26, 0.25, 0.01, false);
+  SpringSystem system = lattice.system;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> jitter(-0.04, 0.04);
+  for (Vec3& p : system.positions) p += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  // Springs keep the rest lengths of the undisplaced lattice.
+  SettleOptions options = verlet_options();
+  options.damping_mode = DampingMode::critical;
+  options.tolerance = 1e-10;
+  const LatticeShape shape = shape_of(lattice);
+  const SettleReport report = settle(system, options, &shape);
+  CHECK(report.converged);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < system.positions.size(); ++i)
+    for (std::size_t j = i + 1; j < system.positions.size(); ++j) {
+      const double now = (system.positions[i] - system.positions[j]).norm();
+      const double then = (lattice.system.positions[i] - lattice.system.positions[j]).norm();
+      worst = std::max(worst, std::abs(now - then));
+    }
+  CHECK(worst < 1e-8);
+}
+
+TEST_CASE("model-6 with nothing fixed restores every spring length", "[springs][solver]") {
+  const Lattice lattice = regular_lattice(6, SpringModel::model6, 0.2, 0.01, false);
+  SpringSystem system = lattice.system;
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> jitter(-0.04, 0.04);
+  for (Vec3& p : system.positions) p += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  double before = 0.0;
+  for (const Spring& s : system.springs)
+    before = std::max(before, std::abs((system.positions[s.a] - system.positions[s.b]).norm() - s.rest));
+  SettleOptions options = verlet_options();
+  options.damping_mode = DampingMode::critical;
+  options.tolerance = 1e-10;
+  const LatticeShape shape = shape_of(lattice);
+  const SettleReport report = settle(system, options, &shape);
+  CHECK(report.converged);
+  CHECK(before > 1e-2);
+  for (const Spring& s : system.springs)
+    CHECK(std::abs((system.positions[s.a] - system.positions[s.b]).norm() - s.rest) < 1e-9 * s.rest);
+}
+
+TEST_CASE("damped Verlet runs lose energy monotonically", "[springs][solver]") {
+  for (DampingMode mode : {DampingMode::estimate, DampingMode::critical}) {
+    for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+      const Lattice lattice = moved_lattice(TemplateKind::parallel, 64, 8, model);
+      SettleOptions options = verlet_options();
+      options.damping_mode = mode;
+      options.record_energy = true;
+      options.tolerance = 1e-6;
+      SpringSystem system = lattice.system;
+      const LatticeShape shape = shape_of(lattice);
+      const SettleReport report = settle(system, options, &shape);
+      CHECK(report.converged);
+      REQUIRE(report.energy_history.size() > 10);
+      for (std::size_t i = 1; i < report.energy_history.size(); ++i)
+        CHECK(report.energy_history[i] <= report.energy_history[i - 1]);
+      CHECK(report.energy_history.back() < 0.5 * report.energy_history.front());
+    }
+  }
+}
+
+TEST_CASE("extreme masses converge or stop with SolverError, never NaN", "[springs][solver]") {
+  const Lattice lattice = moved_lattice(TemplateKind::pennate, 36, 7, SpringModel::model6);
+  const LatticeShape shape = shape_of(lattice);
+  int diverged = 0, converged = 0;
+  for (double mass : {1e-6, 1e-4, 1e-2, 1.0, 1e2, 1e3}) {
+    for (double dt : {0.0, 1e-2}) {
+      for (Backend backend : {Backend::structured, Backend::general}) {
+        SettleOptions options = verlet_options();
+        options.mass = mass;
+        options.dt = dt;
+        options.backend = backend;
+        options.tolerance = 1e-6;
+        options.max_iterations = 20000;
+        SpringSystem system = lattice.system;
+        try {
+          const SettleReport report = settle(system, options, &shape);
+          CHECK(all_finite(system.positions));
+          CHECK(std::isfinite(report.residual));
+          if (report.converged) ++converged;
+        } catch (const SolverError& e) {
+          ++diverged;
+          CHECK(std::string(e.what()).find("--dt") != std::string::npos);
+          CHECK(system.positions == lattice.system.positions);  // nothing written
+        }
+      }
+    }
+  }
+  CHECK(diverged > 0);    // a fixed step too large for the small masses is caught
+  CHECK(converged >= 12);  // the automatic step converges at every mass
+}
+
+TEST_CASE("stiffness scaled over 6 orders converges or stops with SolverError, never NaN", "[springs][solver]") {
+  const Lattice lattice = moved_lattice(TemplateKind::curved, 36, 7, SpringModel::model26);
+  int diverged = 0, converged = 0;
+  for (double scale : {1e-3, 1e-1, 1.0, 1e1, 1e3}) {
+    for (double dt : {0.0, 5e-3}) {
+      SpringSystem system = lattice.system;
+      for (Spring& s : system.springs) s.stiffness *= scale;  // general path: k != 1 / rest
+      SettleOptions options = verlet_options();
+      options.dt = dt;
+      options.damping_mode = DampingMode::critical;
+      options.tolerance = 1e-6;
+      options.max_iterations = 20000;
+      try {
+        const SettleReport report = settle(system, options);
+        CHECK(report.backend == "general");
+        CHECK(all_finite(system.positions));
+        if (report.converged) ++converged;
+      } catch (const SolverError&) {
+        ++diverged;
+      }
+      SettleOptions statics;
+      statics.solver = SolverKind::static_equilibrium;
+      statics.tolerance = 1e-9;
+      SpringSystem again = lattice.system;
+      for (Spring& s : again.springs) s.stiffness *= scale;
+      CHECK(settle(again, statics).converged);
+      CHECK(all_finite(again.positions));
+    }
+  }
+  CHECK(diverged > 0);
+  CHECK(converged >= 5);
+}
+
+TEST_CASE("the same lattice at 1e-6 and 1e4 length scale gives the same relative result", "[springs][solver]") {
+  for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
+   for (StaticMethod method : {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global}) {
+    if (solver == SolverKind::verlet && method != StaticMethod::momentum) continue;
+    std::vector<std::vector<Vec3>> results;
+    std::vector<SettleReport> reports;
+    for (double scale : {1e-6, 1.0, 1e4}) {
+      Lattice lattice = moved_lattice(TemplateKind::fanned, 25, 6, SpringModel::model6);
+      SpringSystem& system = lattice.system;
+      for (Vec3& p : system.positions) p *= scale;
+      for (Spring& s : system.springs) {
+        s.rest *= scale;
+        s.stiffness = 1.0 / s.rest;
+      }
+      for (double& m : system.mass) m *= scale * scale * scale;  // density x volume
+      SettleOptions options;
+      options.solver = solver;
+      options.static_method = method;
+      options.damping_mode = DampingMode::critical;
+      // Verlet: a fixed number of steps; static: to a tight tolerance.
+      options.tolerance = solver == SolverKind::verlet ? 0.0 : 1e-10;
+      options.max_iterations = solver == SolverKind::verlet ? 400 : 10000;
+      const LatticeShape shape = shape_of(lattice);
+      reports.push_back(settle(system, options, &shape));
+      for (Vec3& p : system.positions) p /= scale;
+      results.push_back(system.positions);
+    }
+    INFO(solver_name(solver) << " method " << static_cast<int>(method));
+    CHECK(max_distance(results[0], results[1]) < 1e-9);
+    CHECK(max_distance(results[2], results[1]) < 1e-9);
+    if (solver == SolverKind::verlet) {
+      CHECK(reports[0].residual == Approx(reports[1].residual).epsilon(1e-6));
+      CHECK(reports[2].residual == Approx(reports[1].residual).epsilon(1e-6));
+      CHECK(reports[1].residual < 1e-2);  // it did settle
+    } else {
+      for (const SettleReport& r : reports) CHECK(r.converged);
+    }
+   }
+  }
+}
+
+TEST_CASE("static equilibrium matches a long Verlet run", "[springs][solver]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    const Lattice lattice = moved_lattice(TemplateKind::curved, 49, 9, model);
+    const LatticeShape shape = shape_of(lattice);
+    SettleOptions statics;
+    statics.solver = SolverKind::static_equilibrium;
+    statics.static_method = StaticMethod::newton;
+    statics.tolerance = 1e-11;
+    SpringSystem a = lattice.system;
+    const SettleReport ra = settle(a, statics, &shape);
+    SettleOptions verlet = verlet_options();
+    verlet.damping_mode = DampingMode::critical;
+    verlet.tolerance = 1e-11;
+    SpringSystem b = lattice.system;
+    const SettleReport rb = settle(b, verlet, &shape);
+    CHECK(ra.converged);
+    CHECK(rb.converged);
+    CHECK(ra.iterations < rb.iterations);
+    CHECK(max_distance(a.positions, b.positions) < 1e-8);
+    CHECK(max_distance(a.positions, lattice.system.positions) > 1e-2);
+    CHECK(ra.backend == "newton-cg");
+    CHECK(ra.inner_iterations >= ra.iterations);
+    // The momentum method, on both data paths, reaches the same equilibrium.
+    for (Backend backend : {Backend::automatic, Backend::general}) {
+      SettleOptions momentum;
+      momentum.solver = SolverKind::static_equilibrium;
+      momentum.static_method = StaticMethod::momentum;
+      momentum.backend = backend;
+      momentum.tolerance = 1e-11;
+      SpringSystem m = lattice.system;
+      const SettleReport rm = settle(m, momentum, &shape);
+      CHECK(rm.converged);
+      CHECK(rm.backend == (backend == Backend::general ? "momentum-general" : "momentum-structured"));
+      CHECK(max_distance(a.positions, m.positions) < 1e-8);
+    }
+    // Local-global (Liu et al. 2013), Anderson-accelerated and plain, reach the same equilibrium.
+    statics.static_method = StaticMethod::local_global;
+    SpringSystem c = lattice.system;
+    const SettleReport rc = settle(c, statics, &shape);
+    CHECK(rc.backend == "ldlt");
+    CHECK(rc.converged);
+    CHECK(max_distance(a.positions, c.positions) < 1e-8);
+    statics.acceleration = Acceleration::none;
+    SpringSystem d = lattice.system;
+    const SettleReport rd = settle(d, statics, &shape);
+    CHECK(rd.converged);
+    CHECK(rd.iterations >= rc.iterations);
+    CHECK(max_distance(a.positions, d.positions) < 1e-8);
+  }
+}
+
+TEST_CASE("static with zero rest lengths is exact in one solve", "[springs][solver]") {
+  SpringSystem system;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0), stiffness(0.5, 5.0);
+  const int n = 40;
+  for (int i = 0; i < n; ++i) {
+    system.positions.push_back(Vec3(coordinate(rng), coordinate(rng), coordinate(rng)));
+    system.fixed.push_back(i < 6 ? 1 : 0);
+    system.mass.push_back(1.0);
+  }
+  for (int i = 0; i < n; ++i)
+    for (int k = 1; k <= 3; ++k) system.springs.push_back({i, (i + 7 * k) % n, 0.0, stiffness(rng)});
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.static_method = StaticMethod::local_global;
+  options.tolerance = 1e-12;
+  SpringSystem copy = system;
+  const SettleReport report = settle(copy, options);
+  CHECK(report.converged);
+  CHECK(report.iterations == 1);
+  CHECK(report.residual < 1e-12);
+  // Newton reaches the same point (the energy is quadratic: a few steps).
+  options.static_method = StaticMethod::newton;
+  const SettleReport newton = settle(system, options);
+  CHECK(newton.converged);
+  for (std::size_t i = 0; i < system.positions.size(); ++i)
+    CHECK((system.positions[i] - copy.positions[i]).norm() < 1e-10);
+}
+
+TEST_CASE("tolerance 0 runs exactly max_iterations", "[springs][solver]") {
+  const Lattice lattice = moved_lattice(TemplateKind::parallel, 16, 5, SpringModel::model6);
+  for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
+    SettleOptions options;
+    options.solver = solver;
+    options.tolerance = 0.0;
+    options.max_iterations = 37;
+    SpringSystem system = lattice.system;
+    const SettleReport report = settle(system, options);
+    CHECK(report.iterations == 37);
+    CHECK_FALSE(report.converged);
+    CHECK(report.residual_history.size() == 38);
+  }
+}
+
+TEST_CASE("solver errors and option errors", "[springs][solver]") {
+  const Lattice free_lattice = regular_lattice(4, SpringModel::model6, 1.0, 1.0, false);
+  SettleOptions statics;
+  statics.solver = SolverKind::static_equilibrium;
+  statics.static_method = StaticMethod::newton;
+  SpringSystem system = free_lattice.system;
+  CHECK_THROWS_AS(settle(system, statics), SolverError);
+  statics.static_method = StaticMethod::local_global;
+  CHECK_THROWS_AS(settle(system, statics), SolverError);
+  CHECK_THROWS_AS(parse_static_method("cholesky"), OptionError);
+
+  const Lattice lattice = moved_lattice(TemplateKind::parallel, 16, 5, SpringModel::model6);
+  SettleOptions options;
+  options.tolerance = -1.0;
+  CHECK_THROWS_AS(make_solver(lattice.system, options), OptionError);
+  options = SettleOptions();
+  options.max_iterations = 0;
+  CHECK_THROWS_AS(make_solver(lattice.system, options), OptionError);
+  options = SettleOptions();
+  options.dt = -1.0;
+  CHECK_THROWS_AS(make_solver(lattice.system, options), OptionError);
+  options = SettleOptions();
+  options.backend = Backend::structured;  // no shape given
+  CHECK_THROWS_AS(make_solver(lattice.system, options), OptionError);
+  SpringSystem scaled = lattice.system;
+  for (Spring& s : scaled.springs) s.stiffness *= 2.0;  // not 1 / rest
+  const LatticeShape shape = shape_of(lattice);
+  CHECK_THROWS_AS(make_solver(scaled, options, &shape), OptionError);
+  CHECK_THROWS_AS(parse_solver_kind("implicit"), OptionError);
+  CHECK_THROWS_AS(parse_backend("gpu"), OptionError);
+
+  // A time step far too large diverges with the error, not NaN.
+  options = SettleOptions();
+  options.dt = 10.0;
+  SpringSystem diverging = lattice.system;
+  CHECK_THROWS_AS(settle(diverging, options), SolverError);
+}
