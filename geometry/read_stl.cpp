@@ -68,6 +68,7 @@ PolygonSoup read_binary_stl(const std::string& path, std::string_view data, cons
   return soup;
 }
 
+/// Facets are limited by options.max_elements, as in binary STL (each gives 3 points).
 PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const ReadOptions& options) {
   ParseCursor in(path, data);
   in.skip_byte_order_mark();
@@ -80,8 +81,8 @@ PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const
     if (t.empty()) break;
     if (iequals(t, "vertex")) {
       if (!in_loop) in.fail(ErrorCode::malformed, "'vertex' outside 'outer loop'");
-      if (soup.points.size() >= limit)
-        in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " vertices");
+      if (soup.points.size() >= static_cast<std::size_t>(INT_MAX))
+        in.fail(ErrorCode::too_large, "more than " + std::to_string(INT_MAX) + " vertices");
       const double x = in.number("x coordinate", false);
       const double y = in.number("y coordinate", false);
       const double z = in.number("z coordinate", false);

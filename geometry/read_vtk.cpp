@@ -115,10 +115,13 @@ class VtkReader {
     return *type;
   }
 
-  /// Checks a declared count of values against the limits and the file size; then makes sure
-  /// binary data is all there.
+  /// Checks a declared count of values (not elements: max_elements applies to the point and
+  /// cell counts) against the file size; then makes sure binary data is all there.
   void check_values(std::uint64_t count, Scalar type, const char* what) {
-    check_declared_count(in_, count, binary_ ? scalar_size(type) : 2, in_.size(), what, options_);
+    const std::uint64_t min_bytes = binary_ ? scalar_size(type) : 2;  // ASCII: a digit and a blank
+    if (count > in_.size() / min_bytes)
+      in_.fail(ErrorCode::too_large, std::string("declares ") + std::to_string(count) + " values in " + what +
+                                         " but the file has only " + std::to_string(in_.size()) + " bytes");
     if (binary_ && count * scalar_size(type) > in_.remaining())
       in_.fail(ErrorCode::truncated, std::string("file ends inside ") + what + " (" +
                                          std::to_string(count * scalar_size(type)) + " bytes declared, " +
@@ -212,6 +215,7 @@ class VtkReader {
     in_.token_any();  // OFFSETS
     const Scalar offset_type = type_in_line(true);
     end_line();
+    check_declared_count(in_, offsets, binary_ ? scalar_size(offset_type) : 2, in_.size(), "cell offsets", options_);
     check_values(offsets, offset_type, "OFFSETS array");
     std::vector<std::int64_t> offset(static_cast<std::size_t>(offsets));
     for (std::size_t i = 0; i < offset.size(); ++i) {

@@ -317,6 +317,21 @@ TEST_CASE("error too_large: limits from ReadOptions", "[geometry][io][errors]") 
   require_soup_error(dir.file("s.stl"), ErrorCode::too_large, "byte 80", small);
   write_bytes(dir.file("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n");
   require_soup_error(dir.file("m.obj"), ErrorCode::too_large, "line 4", small);
+  // The limit counts points and faces, not the values that store them (3 per point, 4 per cell).
+  ReadOptions four;
+  four.max_elements = 4;
+  write_bytes(dir.file("t.vtk"), binary_vtk_tetra());
+  CHECK(read_polygon_soup(dir.file("t.vtk"), four).polygons.size() == 4);
+  CHECK(read_polygon_soup(dir.file("t.off"), four).polygons.size() == 4);
+  CHECK(read_polygon_soup(dir.file("s.stl"), four).polygons.size() == 4);  // STL counts facets
+  std::string ascii_stl = "solid x\n";
+  for (int f = 0; f < 4; ++f) ascii_stl += "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+  write_bytes(dir.file("a.stl"), ascii_stl + "endsolid x\n");
+  CHECK(read_polygon_soup(dir.file("a.stl"), four).polygons.size() == 4);
+  four.max_elements = 3;
+  const std::size_t points_data = binary_vtk_tetra().find("float\n") + 6;
+  require_soup_error(dir.file("t.vtk"), ErrorCode::too_large, "byte " + std::to_string(points_data), four);
+  require_soup_error(dir.file("a.stl"), ErrorCode::too_large, "line 28", four);  // the 4th endloop: 1 + 3 * 7 + 6
 }
 
 TEST_CASE("ReadOptions::validate names the bad field", "[geometry][io][errors]") {

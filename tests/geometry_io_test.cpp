@@ -120,6 +120,23 @@ TEST_CASE("writers refuse an unknown extension before writing anything", "[geome
   CHECK(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()) == 0);
 }
 
+TEST_CASE("writers report an unwritable target as IoError and keep an existing file", "[geometry][io]") {
+  TempDir dir;
+  const TriangleMesh mesh = awkward_tetrahedron();
+  try {
+    write_triangle_mesh(dir.file("missing-folder/mesh.off"), mesh);
+    FAIL("no exception");
+  } catch (const IoError& e) {
+    CHECK(e.code() == ErrorCode::output_failed);
+  }
+  const std::string path = dir.file("mesh.obj");
+  write_bytes(path, "old content");
+  TriangleMesh broken = mesh;
+  broken.triangles.push_back({0, 1, 99});  // out of range: refused before anything is written
+  CHECK_THROWS_AS(write_triangle_mesh(path, broken), Error);
+  CHECK(read_bytes(path) == "old content");
+}
+
 TEST_CASE("polylines round-trip through VTK (with cell data) and OBJ", "[geometry][io]") {
   TempDir dir;
   Polylines lines;
@@ -220,6 +237,12 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
     const PolygonSoup s = read_polygon_soup(dir.file("c.off"));
     CHECK(s.points == std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)});
     CHECK(s.polygons == Polys{{0, 1, 2}, {0, 2, 3}});
+  }
+  SECTION("numbers below the double range read as zero; exponents, signs and no leading digit") {
+    write_bytes(dir.file("u.off"), "OFF\n3 1 0\n1e-400 -1E-999 +.5\n-0.25e+1 1. 7E2\n0 0 0\n3 0 1 2\n");
+    const PolygonSoup s = read_polygon_soup(dir.file("u.off"));
+    CHECK(s.points[0] == Vec3(0, 0, 0.5));
+    CHECK(s.points[1] == Vec3(-2.5, 1, 700));
   }
   SECTION("no header word; faces with two indices or repeated indices are kept as stored") {
     write_bytes(dir.file("d.off"), "3 3 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n2 0 1\n3 0 0 1\n");
@@ -427,6 +450,26 @@ TEST_CASE("VTK 5.1 OFFSETS/CONNECTIVITY cells", "[geometry][io][vtk]") {
               "METADATA\nINFORMATION 0\n\n"
               "POLYGONS 3 7\nOFFSETS vtktypeint64\n0 3 7\nCONNECTIVITY vtktypeint64\n0 1 2 1 3 2 0\n");
   CHECK(read_polygon_soup(dir.file("n.vtk")).polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}});
+}
+
+TEST_CASE("VTK 5.1 binary OFFSETS/CONNECTIVITY with 64-bit indices", "[geometry][io][vtk]") {
+  TempDir dir;
+  std::string s = "# vtk DataFile Version 5.1\nnew\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n";
+  for (int v = 0; v < 4; ++v)
+    for (int c = 0; c < 3; ++c) put<float>(s, static_cast<float>(v == c + 1), true);
+  s += "\nPOLYGONS 3 7\nOFFSETS vtktypeint64\n";
+  for (std::int64_t o : {0, 3, 7}) put<std::int64_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint64\n";
+  for (std::int64_t i : {0, 1, 2, 1, 3, 2, 0}) put<std::int64_t>(s, i, true);
+  s += "\nTRIANGLE_STRIPS 2 4\nOFFSETS vtktypeint32\n";
+  for (std::int32_t o : {0, 4}) put<std::int32_t>(s, o, true);
+  s += "\nCONNECTIVITY vtktypeint32\n";
+  for (std::int32_t i : {0, 1, 2, 3}) put<std::int32_t>(s, i, true);
+  s += "\n";
+  write_bytes(dir.file("n.vtk"), s);
+  const PolygonSoup soup = read_polygon_soup(dir.file("n.vtk"));
+  CHECK(soup.points[3] == Vec3(0, 0, 1));
+  CHECK(soup.polygons == Polys{{0, 1, 2}, {1, 3, 2, 0}, {0, 1, 2}, {2, 1, 3}});
 }
 
 namespace {

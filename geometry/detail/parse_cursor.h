@@ -315,8 +315,13 @@ class ParseCursor {
     if (t.empty()) return false;
     const auto result = std::from_chars(t.data(), t.data() + t.size(), value);
     if (result.ec == std::errc::result_out_of_range) {
-      // Overflow to +-inf or underflow to 0: report overflow as not finite, keep underflow as 0.
-      value = std::strtod(std::string(t).c_str(), nullptr);
+      // Too small for a double (a negative exponent) reads as a signed zero; too large as
+      // infinity, which the callers reject as not finite. No strtod: it depends on the locale.
+      const std::size_t e = t.find_first_of("eE");
+      const bool tiny = e != std::string_view::npos && e + 1 < t.size() && t[e + 1] == '-';
+      const bool negative = t[0] == '-';
+      value = tiny ? (negative ? -0.0 : 0.0)
+                   : (negative ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity());
       return result.ptr == t.data() + t.size();
     }
     return result.ec == std::errc() && result.ptr == t.data() + t.size();

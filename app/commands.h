@@ -1,0 +1,15 @@
+#pragma once
+/// \file commands.h
+/// Each `fascicle` subcommand registers itself on the CLI11 application. A command's callback
+/// throws fascicle::Error on failure; main() turns that into a one-line message and exit code.
+
+#include <CLI/CLI.hpp>
+
+namespace fascicle::app {
+
+void add_sample_command(CLI::App& app);   // fascicle sample
+void add_repair_command(CLI::App& app);   // fascicle repair
+void add_convert_command(CLI::App& app);  // fascicle convert
+void add_bench_command(CLI::App& app);    // fascicle bench ...
+
+}  // namespace fascicle::app

@@ -1,0 +1,14 @@
+#pragma once
+/// \file bench_commands.h
+/// Bench programs, run as `fascicle bench NAME`. Each measures one stage on real data and prints a
+/// table plus, with --json, a list of records. Timings live here, never in tests.
+
+#include <CLI/CLI.hpp>
+
+namespace fascicle::bench {
+
+/// `fascicle bench repair [--data DIR] [--json FILE]`: repair time and result for every mesh of
+/// the corpus (../shared/data/muscles and broken).
+void add_repair_bench(CLI::App& bench);
+
+}  // namespace fascicle::bench
