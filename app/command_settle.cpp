@@ -25,7 +25,7 @@ namespace {
 struct SettleArgs {
   std::string input, output, report, targets;
   std::string solver = "verlet";
-  std::string static_method = "newton";
+  std::string static_method = "momentum";
   std::string backend = "auto";
   std::string damping = "estimate";
   int model = 0;
@@ -155,7 +155,7 @@ void add_settle_command(CLI::App& app) {
   cmd->add_option("--targets", args->targets, "Move fixed points first: lines 'index x y z'");
   cmd->add_option("--solver", args->solver, "verlet (thesis, formula 3.8) or static (equilibrium directly)")
       ->capture_default_str();
-  cmd->add_option("--static-method", args->static_method, "static solver: newton or local-global")
+  cmd->add_option("--static-method", args->static_method, "static solver: momentum, newton or local-global")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend, "Verlet data path: auto, structured, general")->capture_default_str();
   cmd->add_option("--model", args->model, "Expect a model-6 or model-26 lattice (default: detect)");

@@ -208,7 +208,7 @@ MeshCensus census_of_triangles(const TriangleMesh& mesh, bool count_intersection
   return c;
 }
 
-double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samples, std::uint64_t seed) {
+double one_sided_distance(const TriangleMesh& from_mesh, const TriangleMesh& to_mesh, int samples, std::uint64_t seed) {
   using Tri = K::Triangle_3;
   using Primitive = CGAL::AABB_triangle_primitive<K, std::vector<Tri>::const_iterator>;
   using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
@@ -264,7 +264,11 @@ double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samp
     });
     return std::sqrt(d2.empty() ? 0.0 : *std::max_element(d2.begin(), d2.end()));
   };
-  return std::max(one_sided(a, b), one_sided(b, a));
+  return one_sided(from_mesh, to_mesh);
+}
+
+double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samples, std::uint64_t seed) {
+  return std::max(one_sided_distance(a, b, samples, seed), one_sided_distance(b, a, samples, seed));
 }
 
 }  // namespace detail

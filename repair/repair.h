@@ -54,19 +54,24 @@ struct RepairOptions {
   /// Allow the alpha-wrap fallback (default true). When false, a mesh that local repair cannot
   /// fix is refused.
   bool allow_wrap = true;
-  /// Finest wrap alpha as a fraction of the diagonal (default 1/100); coarsened by 2x until
-  /// the wrap is genus 0, at most `wrap_attempts` times.
+  /// Finest wrap alpha as a fraction of the diagonal (default 1/100). Wrapping runs from coarse
+  /// to fine over `wrap_levels` alphas (finest x 2^k), keeping the finest genus-0 wrap; if even
+  /// the coarsest is not genus 0, coarser alphas up to half the diagonal are tried.
   double wrap_alpha = 0.01;
   /// Wrap offset as a fraction of alpha (default 1/30).
   double wrap_offset_ratio = 1.0 / 30.0;
-  /// Attempts at coarser alphas before refusing (default 4).
-  int wrap_attempts = 4;
+  /// A wrap is accepted only when no point of it lies farther than this fraction of the
+  /// diagonal from the input (default 0.02): a coarse wrap that bridges a real hole or handle
+  /// is not a repair. The offset keeps a faithful wrap about alpha / 30 away.
+  double wrap_max_distance = 0.02;
+  /// Alpha levels from coarse to fine (default 5: 16, 8, 4, 2 and 1 times wrap_alpha).
+  int wrap_levels = 5;
   /// Largest wrap output accepted, faces (default 500 000); a finer wrap whose estimated size is
   /// above it is skipped.
   long max_wrap_faces = 500'000;
   /// Time budget of all wrap attempts together, seconds (default 40). Each attempt runs in a
-  /// child process and may use half of what is left (the last one all of it); one that runs
-  /// past its share is stopped and a coarser alpha tried.
+  /// child process that is stopped when the budget is spent; the finest genus-0 wrap found by
+  /// then is kept.
   double wrap_seconds = 40.0;
   /// Sample points per side for the two-sided Hausdorff estimate (default 20000).
   int hausdorff_samples = 20000;

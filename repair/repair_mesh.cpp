@@ -147,51 +147,93 @@ class RepairPipeline {
     return out;
   }
 
+  // Alpha wrapping from coarse to fine: the coarsest level is tried first (fast, most likely
+  // genus 0; if it is not, coarser alphas up to half the diagonal), then each finer level while
+  // the wrap stays genus 0 and time is left. The finest genus-0 wrap is kept.
   TriangleMesh wrap(const TriangleMesh& cleaned, double diagonal) {
-    double alpha = options_.wrap_alpha * diagonal;
     const double area = surface_area(cleaned);
+    const double finest = options_.wrap_alpha * diagonal;
     const auto wrap_start = Clock::now();
     std::string last_failure;
-    for (int attempt = 0; attempt < options_.wrap_attempts; ++attempt, alpha *= 2.0) {
+
+    auto attempt = [&](double alpha) -> std::optional<TriangleMesh> {
       const double offset = alpha * options_.wrap_offset_ratio;
       // A wrap has about 20 A / alpha^2 faces (measured over the corpus, open sheets included);
       // skip alphas whose wrap would exceed the size budget rather than run for minutes.
-      const double estimate = 20.0 * area / (alpha * alpha);
-      if (estimate > static_cast<double>(options_.max_wrap_faces)) {
+      if (20.0 * area / (alpha * alpha) > static_cast<double>(options_.max_wrap_faces)) {
         last_failure = "wrap at alpha " + std::to_string(alpha) + " would exceed the face budget";
-        continue;
+        return std::nullopt;
       }
       const double left = options_.wrap_seconds - seconds_since(wrap_start);
       if (left <= 0.0) {
-        last_failure += "; the wrap time budget (" + std::to_string(options_.wrap_seconds) + " s) is spent";
-        break;
+        last_failure = "the wrap time budget (" + std::to_string(options_.wrap_seconds) + " s) is spent";
+        return std::nullopt;
       }
-      // An attempt may use half of what is left, so that a coarser (faster) one can follow.
-      const bool last = attempt + 1 == options_.wrap_attempts;
-      std::optional<TriangleMesh> attempt_result;
+      std::optional<TriangleMesh> result;
       step("alpha_wrap", [&] {
-        attempt_result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, last ? left : 0.5 * left);
-        return attempt_result ? static_cast<long>(attempt_result->triangles.size()) : 0L;
+        result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left);
+        return result ? static_cast<long>(result->triangles.size()) : 0L;
       }, "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
-      if (!attempt_result) {
-        report_.steps.back().note += ": stopped at its time limit";
-        last_failure = "wrap at alpha " + std::to_string(alpha) + " ran past its time limit";
-        continue;
+      if (!result) {
+        report_.steps.back().note += ": stopped at the time budget";
+        last_failure = "wrap at alpha " + std::to_string(alpha) + " ran past the time budget";
+        return std::nullopt;
       }
-      TriangleMesh wrapped = std::move(*attempt_result);
-      if (options_.components == ComponentPolicy::largest) wrapped = largest_shell(wrapped);
-      const std::string failure = verify_genus0(wrapped);
-      if (failure.empty()) {
-        report_.fallback_used = true;
-        report_.wrap_alpha = alpha;
-        report_.wrap_offset = offset;
-        return wrapped;
+      if (options_.components == ComponentPolicy::largest) *result = largest_shell(*result);
+      const std::string failure = verify_genus0(*result);
+      if (!failure.empty()) {
+        last_failure = "wrap at alpha " + std::to_string(alpha) + ": " + failure;
+        report_.steps.back().note += ": " + failure;
+        spdlog::debug("{}", last_failure);
+        return std::nullopt;
       }
-      last_failure = "wrap at alpha " + std::to_string(alpha) + ": " + failure;
-      spdlog::debug("{}", last_failure);
+      // A wrap coarse enough to bridge a real hole or handle strays far from the input: that
+      // is not a repair of this mesh.
+      const double stray = detail::one_sided_distance(*result, cleaned, 4000) / diagonal;
+      if (stray > options_.wrap_max_distance) {
+        last_failure = "wrap at alpha " + std::to_string(alpha) + " lies " + std::to_string(stray * 100.0) +
+                       "% of the diagonal away from the input (it bridges a hole or handle)";
+        report_.steps.back().note += ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
+        spdlog::debug("{}", last_failure);
+        return std::nullopt;
+      }
+      report_.steps.back().note += ": genus 0";
+      return result;
+    };
+
+    std::optional<TriangleMesh> best;
+    double best_alpha = 0.0;
+    const double coarsest = finest * std::pow(2.0, options_.wrap_levels - 1);
+    for (double alpha = coarsest; alpha >= finest * (1 - 1e-9); alpha /= 2.0) {
+      if (best) {
+        // Halving alpha makes about four times the faces and takes at least four times as long:
+        // stop refining when that would not fit in what is left of the budget.
+        const double previous = report_.steps.back().seconds;
+        if (4.0 * previous > options_.wrap_seconds - seconds_since(wrap_start)) {
+          report_.steps.back().note += "; finer levels skipped: they would not fit in the time budget";
+          break;
+        }
+      }
+      std::optional<TriangleMesh> result = attempt(alpha);
+      if (result) {
+        best = std::move(result);
+        best_alpha = alpha;
+      } else if (best || seconds_since(wrap_start) >= options_.wrap_seconds) {
+        break;  // a finer wrap opens a handle or runs out of budget: keep the last good one
+      }
     }
-    throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure,
-                        ErrorCode::repair_failed);
+    // Not even the coarsest level is genus 0: coarser alphas, up to half the diagonal.
+    for (double alpha = 2.0 * coarsest; !best && alpha <= 0.5 * diagonal * (1 + 1e-9); alpha *= 2.0) {
+      best = attempt(alpha);
+      best_alpha = alpha;
+      if (!best && seconds_since(wrap_start) >= options_.wrap_seconds) break;
+    }
+    if (!best)
+      throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure, ErrorCode::repair_failed);
+    report_.fallback_used = true;
+    report_.wrap_alpha = best_alpha;
+    report_.wrap_offset = best_alpha * options_.wrap_offset_ratio;
+    return std::move(*best);
   }
 
  private:

@@ -18,7 +18,8 @@ void RepairOptions::validate() const {
   if (!(untangle_limit >= 0.0 && untangle_limit <= 0.1)) bad("untangle_limit", untangle_limit, "0 <= l <= 0.1");
   if (!(wrap_alpha > 0.0 && wrap_alpha <= 0.5)) bad("wrap_alpha", wrap_alpha, "0 < alpha <= 0.5 of the diagonal");
   if (!(wrap_offset_ratio > 0.0 && wrap_offset_ratio <= 1.0)) bad("wrap_offset_ratio", wrap_offset_ratio, "0 < r <= 1");
-  if (wrap_attempts < 1 || wrap_attempts > 20) bad("wrap_attempts", wrap_attempts, "1..20");
+  if (!(wrap_max_distance > 0.0 && wrap_max_distance <= 1.0)) bad("wrap_max_distance", wrap_max_distance, "0 < d <= 1");
+  if (wrap_levels < 1 || wrap_levels > 12) bad("wrap_levels", wrap_levels, "1..12");
   if (max_wrap_faces < 1000) bad("max_wrap_faces", static_cast<double>(max_wrap_faces), ">= 1000");
   if (!(wrap_seconds > 0.0)) bad("wrap_seconds", wrap_seconds, "> 0");
   if (hausdorff_samples < 0) bad("hausdorff_samples", hausdorff_samples, ">= 0");

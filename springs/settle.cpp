@@ -19,9 +19,10 @@ SolverKind parse_solver_kind(const std::string& name) {
 }
 
 StaticMethod parse_static_method(const std::string& name) {
+  if (name == "momentum") return StaticMethod::momentum;
   if (name == "newton") return StaticMethod::newton;
   if (name == "local-global") return StaticMethod::local_global;
-  throw OptionError("static-method: unknown method '" + name + "' (valid: newton, local-global)");
+  throw OptionError("static-method: unknown method '" + name + "' (valid: momentum, newton, local-global)");
 }
 
 Backend parse_backend(const std::string& name) {
@@ -72,9 +73,15 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
                                           const LatticeShape* shape) {
   options.validate();
   validate(system);
-  if (options.solver == SolverKind::static_equilibrium)
-    return options.static_method == StaticMethod::newton ? detail::make_newton_solver(system, options)
-                                                         : detail::make_static_solver(system, options);
+  if (options.solver == SolverKind::static_equilibrium) {
+    if (options.static_method == StaticMethod::newton) return detail::make_newton_solver(system, options);
+    if (options.static_method == StaticMethod::local_global) return detail::make_static_solver(system, options);
+    if (shape && options.backend != Backend::general) {
+      auto solver = detail::make_structured_verlet(system, options, *shape, true);
+      if (solver) return solver;
+    }
+    return detail::make_general_verlet(system, options, true);
+  }
   if (options.backend == Backend::general) return detail::make_general_verlet(system, options);
   if (shape) {
     auto solver = detail::make_structured_verlet(system, options, *shape);
@@ -208,6 +215,27 @@ void throw_verlet_divergence(int iteration, double energy, double initial_energy
   else
     out << "; use a larger --mass or less --damping";
   throw SolverError(out.str());
+}
+
+VerletCoefficients momentum_coefficients(const SpringSystem& system) {
+  const std::size_t n = system.positions.size();
+  std::vector<double> stiffness_sum(n, 0.0);
+  for (const Spring& s : system.springs) {
+    stiffness_sum[s.a] += s.stiffness;
+    stiffness_sum[s.b] += s.stiffness;
+  }
+  double bound = 0.0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!system.fixed[i]) bound = std::max(bound, 2.0 * stiffness_sum[i]);
+  VerletCoefficients out;
+  const double a = bound > 0.0 ? 1.0 / bound : 1.0;
+  out.dt = std::sqrt(a);
+  out.a.assign(n, a);
+  out.b.assign(n, 0.0);
+  out.mass.assign(n, 1.0);
+  out.min_mass = 1.0;
+  out.max_point_stiffness = 0.5 * bound;
+  return out;
 }
 
 double energy_floor(const SpringSystem& system) {

@@ -9,8 +9,12 @@
 ///   forces computed from the current positions only, so the result does not depend on
 ///   traversal order. Fixed points are written to both current and previous positions.
 /// - `static`: the equilibrium directly (fixed points given, zero net force elsewhere). Method
-///   `newton` (default): projected Newton with matrix-free block-Jacobi preconditioned conjugate
-///   gradients and an Armijo line search (see newton_solver.cpp). Method `local-global`: the
+///   `momentum` (default): accelerated gradient descent on the spring energy run by the Verlet
+///   kernels (unit masses, step 1 / L from a Gershgorin bound L of the stiffness, Nesterov's
+///   momentum k / (k + 3), restarted whenever the velocity opposes the force: O'Donoghue and
+///   Candes 2015, "Adaptive restart for accelerated gradient schemes"). Method `newton`:
+///   truncated Newton with matrix-free block-Jacobi preconditioned conjugate gradients and an
+///   Armijo line search (see newton_solver.cpp). Method `local-global`: the
 ///   local-global iteration of Liu, Bargteil, O'Brien
 ///   and Kavan 2013, "Fast simulation of mass-spring systems" (ACM TOG 32(6)): the constant
 ///   matrix L = sum_s D_s A_s A_s^T over free points is factored once (Eigen SimplicialLDLT);
@@ -49,7 +53,9 @@ enum class DampingMode {
 };
 /// How the static solver finds the equilibrium.
 enum class StaticMethod {
-  newton,       ///< projected Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
+  momentum,     ///< accelerated gradient on the Verlet kernels: Nesterov's momentum schedule with
+                ///< gradient restarts (O'Donoghue and Candes 2015), unit masses, step 1 / L
+  newton,       ///< truncated Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
   local_global, ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
 };
 /// Acceleration of the local-global method.
@@ -57,7 +63,7 @@ enum class Acceleration { none, anderson };
 
 /// Parse helpers for the command line. Each throws OptionError naming the option and value.
 SolverKind parse_solver_kind(const std::string& name);  ///< "verlet" | "static"
-StaticMethod parse_static_method(const std::string& name);  ///< "newton" | "local-global"
+StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global"
 Backend parse_backend(const std::string& name);         ///< "auto" | "structured" | "general"
 const char* solver_name(SolverKind kind);
 const char* backend_name(Backend backend);
@@ -82,8 +88,8 @@ struct SettleOptions {
                                        ///< initial energy, > 1 (default 100)
   bool record_energy = false;  ///< energy at every iteration into the report (default false)
   // Static
-  StaticMethod static_method = StaticMethod::newton;  ///< (default newton: fastest measured,
-                                                      ///< docs/BENCHMARKS.md)
+  StaticMethod static_method = StaticMethod::momentum;  ///< (default momentum: fastest measured
+                                                        ///< on large lattices, docs/BENCHMARKS.md)
   Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
   int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
 
@@ -94,7 +100,8 @@ struct SettleOptions {
 /// What a settle did.
 struct SettleReport {
   std::string solver;   ///< "verlet" | "static"
-  std::string backend;  ///< "structured" | "general" (Verlet) | "newton-cg" | "ldlt" (static)
+  std::string backend;  ///< Verlet: "structured", "structured-uniform", "general"; static:
+                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt"
   int iterations = 0;   ///< iterations run (Newton steps for static newton)
   int inner_iterations = 0;  ///< conjugate-gradient iterations (static newton), else 0
   bool converged = false;  ///< final residual <= tolerance (false when tolerance is 0)

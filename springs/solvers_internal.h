@@ -20,6 +20,11 @@ struct VerletCoefficients {
 /// Masses, damping and time step from the options (see SettleOptions).
 VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleOptions& options);
 
+/// Coefficients of the momentum (accelerated gradient) static solver: unit masses, step
+/// a = 1 / L with L the Gershgorin bound of the stiffness matrix (2 max_i sum_j k_ij), so a is
+/// the same for every point; b is set each step by the solver.
+VerletCoefficients momentum_coefficients(const SpringSystem& system);
+
 /// Throws SolverError for a Verlet run that produced NaN/Inf or too much energy.
 [[noreturn]] void throw_verlet_divergence(int iteration, double energy, double initial_energy,
                                           const VerletCoefficients& coefficients,
@@ -29,12 +34,13 @@ VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleO
 /// stretched by its rest length (or 1e-300 when that is 0).
 double energy_floor(const SpringSystem& system);
 
+/// Verlet solvers; with `momentum` the same kernels run the momentum static solver.
 std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
-                                                  const SettleOptions& options);
+                                                  const SettleOptions& options, bool momentum = false);
 /// Returns null when `system` is not exactly the lattice `shape` with stiffness 1 / rest.
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,
-                                                     const LatticeShape& shape);
+                                                     const LatticeShape& shape, bool momentum = false);
 std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,

@@ -18,8 +18,10 @@ constexpr int kBlock = 4096;  // points per parallel block (fixed: deterministic
 
 class GeneralVerlet final : public SpringSolver {
  public:
-  GeneralVerlet(const SpringSystem& system, const SettleOptions& options)
-      : options_(options), coefficients_(verlet_coefficients(system, options)) {
+  GeneralVerlet(const SpringSystem& system, const SettleOptions& options, bool momentum)
+      : options_(options),
+        coefficients_(momentum ? momentum_coefficients(system) : verlet_coefficients(system, options)),
+        momentum_(momentum) {
     n_ = static_cast<int>(system.positions.size());
     fixed_ = system.fixed;
     row_.assign(n_ + 1, 0);
@@ -54,18 +56,38 @@ class GeneralVerlet final : public SpringSolver {
   }
 
   double step() override {
+    double momentum = 0.0;
+    if (momentum_) {
+      // Nesterov's schedule with gradient restarts, as in the structured path.
+      if (since_restart_ > 0 && power_ < 0.0) {
+        prev_ = x_;
+        since_restart_ = 0;
+      }
+      momentum = static_cast<double>(since_restart_) / (since_restart_ + 3);
+      ++since_restart_;
+    }
     const double r2 = compute_forces(x_);
     if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
     const double* a = coefficients_.a.data();
     const double* b = coefficients_.b.data();
-    tbb::parallel_for(tbb::blocked_range<int>(0, n_, kBlock), [&](const tbb::blocked_range<int>& range) {
-      for (int i = range.begin(); i != range.end(); ++i) {
-        for (int c = 0; c < 3; ++c) {
-          const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-          prev_[k] = fixed_[i] ? x_[k] : x_[k] + b[i] * (x_[k] - prev_[k]) + a[i] * force_[k];
+    tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
+      for (int blk = range.begin(); blk != range.end(); ++blk) {
+        double power = 0.0;
+        const int end = std::min(n_, (blk + 1) * kBlock);
+        for (int i = blk * kBlock; i < end; ++i) {
+          const double bi = momentum_ ? momentum : b[i];
+          for (int c = 0; c < 3; ++c) {
+            const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+            const double v = x_[k] - prev_[k];
+            if (!fixed_[i]) power += force_[k] * v;
+            prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
+          }
         }
+        partial_[blk] = power;
       }
-    }, tbb::simple_partitioner());
+    });
+    power_ = 0.0;
+    for (int blk = 0; blk < blocks_; ++blk) power_ += partial_[blk];
     std::swap(x_, prev_);
     ++iteration_;
     if (iteration_ % options_.energy_interval == 0) check_energy();
@@ -111,7 +133,7 @@ class GeneralVerlet final : public SpringSolver {
     for (int i = 0; i < n_; ++i) out[i] = Vec3(x_[3 * i], x_[3 * i + 1], x_[3 * i + 2]);
     return out;
   }
-  std::string backend() const override { return "general"; }
+  std::string backend() const override { return momentum_ ? "momentum-general" : "general"; }
   double time_step() const override { return coefficients_.dt; }
   double mean_damping() const override { return coefficients_.mean_damping; }
 
@@ -160,13 +182,16 @@ class GeneralVerlet final : public SpringSolver {
   std::vector<double> stiffness_, rest_;
   std::vector<double> x_, prev_, force_, partial_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
+  bool momentum_ = false;
+  int since_restart_ = 0;
+  double power_ = 0.0;
 };
 
 }  // namespace
 
 std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
-                                                  const SettleOptions& options) {
-  return std::make_unique<GeneralVerlet>(system, options);
+                                                  const SettleOptions& options, bool momentum) {
+  return std::make_unique<GeneralVerlet>(system, options, momentum);
 }
 
 }  // namespace fascicle::springs::detail

@@ -94,8 +94,10 @@ inline __attribute__((always_inline)) void add_direction(const double* __restric
   }
 }
 
-template <bool Write, bool Uniform, std::size_t... Ds>
-inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1,
+// One row of interior points. Returns the largest squared force (as bits, see bits_of) and adds
+// sum f . (x - x_previous) to `power` (the momentum solver's restart test).
+template <bool Write, bool UniformK, bool UniformAB, std::size_t... Ds>
+inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1, double* power,
                                                              std::index_sequence<Ds...>) {
   const double* __restrict x = g.x;
   const double* __restrict y = g.y;
@@ -110,51 +112,62 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
   const double ku[sizeof...(Ds)] = {g.k_uniform[Ds]...};
   const double au = g.a_uniform, bu = g.b_uniform;
   std::uint64_t largest = 0;
-  // Point p writes only px/py/pz[p], which no other iteration reads: there is no loop-carried
-  // dependence (GCC's restrict on locals is too weak to prove it with three output streams).
-#pragma GCC ivdep
+  double fv = 0.0;
+  // Point p writes only px/py/pz[p], which no other iteration reads: no loop-carried dependence
+  // (GCC's restrict on locals is too weak to prove it with three output streams). The simd
+  // reductions are deterministic for a given machine (lane order is fixed).
+#pragma omp simd reduction(max : largest) reduction(+ : fv)
   for (long p = p0; p < p1; ++p) {
     const double xp = x[p], yp = y[p], zp = z[p];
     double fx = 0.0, fy = 0.0, fz = 0.0;
-    (add_direction<Uniform>(x, y, z, k[Ds], ku[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
+    (add_direction<UniformK>(x, y, z, k[Ds], ku[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
     const std::uint64_t bits = bits_of(fx * fx + fy * fy + fz * fz);
     largest = bits > largest ? bits : largest;
+    const double vx = xp - px[p], vy = yp - py[p], vz = zp - pz[p];
+    fv += fx * vx + fy * vy + fz * vz;
     if (Write) {
-      const double ap = Uniform ? au : a[p], bp = Uniform ? bu : b[p];
-      px[p] = xp + bp * (xp - px[p]) + ap * fx;
-      py[p] = yp + bp * (yp - py[p]) + ap * fy;
-      pz[p] = zp + bp * (zp - pz[p]) + ap * fz;
+      const double ap = UniformAB ? au : a[p], bp = UniformAB ? bu : b[p];
+      px[p] = xp + bp * vx + ap * fx;
+      py[p] = yp + bp * vy + ap * fy;
+      pz[p] = zp + bp * vz + ap * fz;
     }
   }
+  *power += fv;
   return largest;
 }
 
 
-using RowFunction = std::uint64_t (*)(const Kernel&, long, long);
-#define FASCICLE_ROW(name, write, uniform, d)                                   \
-  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1) {     \
-    return row_body<write, uniform>(g, p0, p1, std::make_index_sequence<d>()); \
+using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*);
+#define FASCICLE_ROW(name, write, uk, uab, d)                                                   \
+  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power) {     \
+    return row_body<write, uk, uab>(g, p0, p1, power, std::make_index_sequence<d>());         \
   }
-FASCICLE_ROW(step_row6, true, false, 3)
-FASCICLE_ROW(step_row26, true, false, 13)
-FASCICLE_ROW(force_row6, false, false, 3)
-FASCICLE_ROW(force_row26, false, false, 13)
-FASCICLE_ROW(step_row6_uniform, true, true, 3)
-FASCICLE_ROW(step_row26_uniform, true, true, 13)
-FASCICLE_ROW(force_row6_uniform, false, true, 3)
-FASCICLE_ROW(force_row26_uniform, false, true, 13)
+FASCICLE_ROW(force6, false, false, false, 3)
+FASCICLE_ROW(force26, false, false, false, 13)
+FASCICLE_ROW(force6_k, false, true, false, 3)
+FASCICLE_ROW(force26_k, false, true, false, 13)
+FASCICLE_ROW(step6, true, false, false, 3)
+FASCICLE_ROW(step26, true, false, false, 13)
+FASCICLE_ROW(step6_ab, true, false, true, 3)
+FASCICLE_ROW(step26_ab, true, false, true, 13)
+FASCICLE_ROW(step6_k, true, true, false, 3)
+FASCICLE_ROW(step26_k, true, true, false, 13)
+FASCICLE_ROW(step6_kab, true, true, true, 3)
+FASCICLE_ROW(step26_kab, true, true, true, 13)
 #undef FASCICLE_ROW
 
-// rows[write][uniform][model26]
-const RowFunction kRows[2][2][2] = {{{force_row6, force_row26}, {force_row6_uniform, force_row26_uniform}},
-                                    {{step_row6, step_row26}, {step_row6_uniform, step_row26_uniform}}};
+// kRows[write][uniform stiffness][uniform a, b][model-26]; forces alone ignore a, b.
+const RowFunction kRows[2][2][2][2] = {
+    {{{force6, force26}, {force6, force26}}, {{force6_k, force26_k}, {force6_k, force26_k}}},
+    {{{step6, step26}, {step6_ab, step26_ab}}, {{step6_k, step26_k}, {step6_kab, step26_kab}}}};
 
 class StructuredVerlet final : public SpringSolver {
  public:
   StructuredVerlet(const SpringSystem& system, const SettleOptions& options, const LatticeShape& shape,
-                   std::vector<std::vector<double>> stiffness)
-      : options_(options), coefficients_(verlet_coefficients(system, options)), shape_(shape),
-        stiffness_(std::move(stiffness)) {
+                   std::vector<std::vector<double>> stiffness, bool momentum)
+      : options_(options),
+        coefficients_(momentum ? momentum_coefficients(system) : verlet_coefficients(system, options)),
+        shape_(shape), stiffness_(std::move(stiffness)), momentum_(momentum) {
     n_ = static_cast<long>(system.positions.size());
     const auto& dirs = half_offsets(shape.model);
     directions_ = static_cast<int>(dirs.size());
@@ -170,7 +183,11 @@ class StructuredVerlet final : public SpringSolver {
     fixed_.resize(n_);
     for (long i = 0; i < n_; ++i) fixed_[i] = system.fixed[i] ? 1 : 0;
     rows_ = static_cast<long>(shape.ny) * shape.nz;
+    // At least ~8192 points a task: small lattices run as one task (TBB's overhead per task
+    // is larger than a small lattice's iteration); results do not depend on the grain.
+    grain_ = std::max(1L, 8192L / std::max(1, shape.nx));
     row_largest_.assign(rows_, 0);
+    row_power_.assign(rows_, 0.0);
     // The vectorised loop has no fixed-point logic: a row with a fixed interior point takes the
     // checked path (template lattices fix only the index box's boundary, so none does).
     row_has_fixed_.assign(rows_, 0);
@@ -179,12 +196,24 @@ class StructuredVerlet final : public SpringSolver {
         if (fixed_[row * shape.nx + i]) row_has_fixed_[row] = 1;
     row_energy_.assign(rows_, 0.0);
     detect_uniform();
+    if (momentum_) uniform_ab_ = true;  // one a for every point, b set each step
     scale_ = residual_force_scale(system);
     floor_ = energy_floor(system);
     initial_energy_ = std::max(energy(), floor_);
   }
 
   double step() override {
+    if (momentum_) {
+      // Nesterov's momentum schedule k / (k + 3) with the gradient restart of O'Donoghue and
+      // Candes 2015: when the last step moved against the force (f . v < 0), drop the velocity.
+      if (since_restart_ > 0 && power_ < 0.0) {
+        for (int c = 0; c < 3; ++c) p_[c] = x_[c];
+        since_restart_ = 0;
+        ++restarts_;
+      }
+      coefficients_.b.assign(1, static_cast<double>(since_restart_) / (since_restart_ + 3));
+      ++since_restart_;
+    }
     const double r2 = sweep(true);
     if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
     for (int c = 0; c < 3; ++c) std::swap(x_[c], p_[c]);
@@ -202,7 +231,7 @@ class StructuredVerlet final : public SpringSolver {
   double energy() override {
     const double dt2 = coefficients_.dt * coefficients_.dt;
     const int nx = shape_.nx;
-    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, 16), [&](const tbb::blocked_range<long>& range) {
+    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
         double e = 0.0;
         for (int i = 0; i < nx; ++i) {
@@ -233,7 +262,9 @@ class StructuredVerlet final : public SpringSolver {
     for (long i = 0; i < n_; ++i) out[i] = Vec3(x_[0][i], x_[1][i], x_[2][i]);
     return out;
   }
-  std::string backend() const override { return uniform_ ? "structured-uniform" : "structured"; }
+  std::string backend() const override {
+    return std::string(momentum_ ? "momentum-" : "") + (uniform_k_ ? "structured-uniform" : "structured");
+  }
   double time_step() const override { return coefficients_.dt; }
   double mean_damping() const override { return coefficients_.mean_damping; }
 
@@ -255,20 +286,21 @@ class StructuredVerlet final : public SpringSolver {
     g.fixed = fixed_.data();
     for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
     g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
-    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];
+    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
     return g;
   }
 
   // A lattice is uniform when every direction's springs share one stiffness to 1e-12 relative
-  // (regular lattices: the rest lengths differ only by rounding) and every point has the same
-  // a and b. Its interior rows then read scalars instead of 3 + 2 (model-6) or 13 + 2 (model-26)
-  // arrays, which is most of the memory traffic. The stiffness used is the direction's mean: a
+  // (regular lattices: the rest lengths differ only by rounding); a, b are uniform when every
+  // point has the same. Interior rows then read scalars instead of 3 or 13 stiffness arrays and
+  // 2 coefficient arrays, which is most of the memory traffic. The stiffness used is the direction's mean: a
   // change of at most 1e-12 relative, far below any solver tolerance.
   void detect_uniform() {
-    uniform_ = n_ > 0;
-    for (long i = 1; i < n_ && uniform_; ++i)
-      uniform_ = coefficients_.a[i] == coefficients_.a[0] && coefficients_.b[i] == coefficients_.b[0];
-    for (int d = 0; d < directions_ && uniform_; ++d) {
+    uniform_ab_ = n_ > 0;
+    for (long i = 1; i < n_ && uniform_ab_; ++i)
+      uniform_ab_ = coefficients_.a[i] == coefficients_.a[0] && coefficients_.b[i] == coefficients_.b[0];
+    uniform_k_ = n_ > 0;
+    for (int d = 0; d < directions_ && uniform_k_; ++d) {
       double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
       long count = 0;
       for (long i = 0; i < n_; ++i) {
@@ -279,10 +311,10 @@ class StructuredVerlet final : public SpringSolver {
         sum += k;
         ++count;
       }
-      if (count == 0 || hi - lo > 1e-12 * hi) uniform_ = false;
+      if (count == 0 || hi - lo > 1e-12 * hi) uniform_k_ = false;
       else k_uniform_[d] = sum / count;
     }
-    if (!uniform_) return;
+    if (!uniform_k_) return;
     // The checked boundary path reads the arrays: give them the same values.
     for (int d = 0; d < directions_; ++d)
       for (long i = 0; i < n_; ++i)
@@ -290,7 +322,7 @@ class StructuredVerlet final : public SpringSolver {
   }
 
   // Checked scalar path for a point on the boundary of the index box.
-  std::uint64_t boundary_point(const Kernel& g, long p, int i, int j, int k, bool write) const {
+  std::uint64_t boundary_point(const Kernel& g, long p, int i, int j, int k, bool write, double* power) const {
     const double xp = g.x[p], yp = g.y[p], zp = g.z[p];
     double f[3] = {0.0, 0.0, 0.0};
     for (int d = 0; d < directions_; ++d) {
@@ -304,12 +336,23 @@ class StructuredVerlet final : public SpringSolver {
       }
     }
     const bool is_fixed = g.fixed[p] != 0;
-    if (write) {
-      g.px[p] = is_fixed ? xp : xp + g.b[p] * (xp - g.px[p]) + g.a[p] * f[0];
-      g.py[p] = is_fixed ? yp : yp + g.b[p] * (yp - g.py[p]) + g.a[p] * f[1];
-      g.pz[p] = is_fixed ? zp : zp + g.b[p] * (zp - g.pz[p]) + g.a[p] * f[2];
+    if (is_fixed) {
+      if (write) {
+        g.px[p] = xp;
+        g.py[p] = yp;
+        g.pz[p] = zp;
+      }
+      return 0;
     }
-    return bits_of(is_fixed ? 0.0 : f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    const double v[3] = {xp - g.px[p], yp - g.py[p], zp - g.pz[p]};
+    *power += f[0] * v[0] + f[1] * v[1] + f[2] * v[2];
+    if (write) {
+      const double a = uniform_ab_ ? g.a_uniform : g.a[p], b = uniform_ab_ ? g.b_uniform : g.b[p];
+      g.px[p] = xp + b * v[0] + a * f[0];
+      g.py[p] = yp + b * v[1] + a * f[1];
+      g.pz[p] = zp + b * v[2] + a * f[2];
+    }
+    return bits_of(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
   }
 
   // One pass over the lattice: forces at the current positions, new positions into p_ when
@@ -318,25 +361,31 @@ class StructuredVerlet final : public SpringSolver {
     const Kernel g = kernel();
     const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     const bool model6 = directions_ == 3;
-    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, 4), [&](const tbb::blocked_range<long>& range) {
+    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
         const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
         const long base = row * nx;
         std::uint64_t largest = 0;
+        double power = 0.0;
         auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
         if (j == 0 || k == 0 || j == ny - 1 || k == nz - 1 || nx < 3 || row_has_fixed_[row]) {
-          for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write));
+          for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write, &power));
         } else {
-          take(boundary_point(g, base, 0, j, k, write));
+          take(boundary_point(g, base, 0, j, k, write, &power));
           const long p0 = base + 1, p1 = base + nx - 1;
-          take(kRows[write][uniform_][model6 ? 0 : 1](g, p0, p1));
-          take(boundary_point(g, base + nx - 1, nx - 1, j, k, write));
+          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power));
+          take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
         }
         row_largest_[row] = largest;
+        row_power_[row] = power;
       }
     }, tbb::simple_partitioner());
     std::uint64_t largest = 0;
-    for (long row = 0; row < rows_; ++row) largest = std::max(largest, row_largest_[row]);
+    power_ = 0.0;
+    for (long row = 0; row < rows_; ++row) {
+      largest = std::max(largest, row_largest_[row]);
+      power_ += row_power_[row];
+    }
     return double_of(largest);
   }
 
@@ -344,15 +393,20 @@ class StructuredVerlet final : public SpringSolver {
   VerletCoefficients coefficients_;
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
-  long n_ = 0, rows_ = 0;
+  long n_ = 0, rows_ = 0, grain_ = 1;
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
   long offset_[kMaxDirections] = {};
   double k_uniform_[kMaxDirections] = {};
-  bool uniform_ = false;
+  bool uniform_k_ = false, uniform_ab_ = false;
   std::vector<double> x_[3], p_[3];
   std::vector<std::uint8_t> fixed_;
   std::vector<std::uint64_t> row_largest_;
+  std::vector<double> row_power_;
+  double power_ = 0.0;  // sum over free points of f . (x - x_previous), last sweep
+  bool momentum_ = false;
+  int since_restart_ = 0;
+  int restarts_ = 0;
   std::vector<char> row_has_fixed_;
   std::vector<double> row_energy_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
@@ -361,7 +415,7 @@ class StructuredVerlet final : public SpringSolver {
 }  // namespace
 
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system, const SettleOptions& options,
-                                                     const LatticeShape& shape) {
+                                                     const LatticeShape& shape, bool momentum) {
   const long n = static_cast<long>(shape.nx) * shape.ny * shape.nz;
   if (shape.nx < 1 || shape.ny < 1 || shape.nz < 1 || n != static_cast<long>(system.positions.size()))
     return nullptr;
@@ -389,7 +443,7 @@ std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
           if (stiffness[d][i + static_cast<long>(shape.nx) * (j + static_cast<long>(shape.ny) * k)] == 0.0)
             return nullptr;
         }
-  return std::make_unique<StructuredVerlet>(system, options, shape, std::move(stiffness));
+  return std::make_unique<StructuredVerlet>(system, options, shape, std::move(stiffness), momentum);
 }
 
 }  // namespace fascicle::springs::detail

@@ -256,14 +256,25 @@ TEST_CASE("a torus with a large hole is refused with a clear error", "[repair]")
   }
 }
 
-TEST_CASE("merge policy wraps several components into one", "[repair]") {
-  const PolygonSoup two = inject(make_icosphere(3), DefectKind::stray_component, 1);
+TEST_CASE("merge policy wraps overlapping components into one and refuses distant ones", "[repair]") {
+  // Two overlapping balls (like the overlapping element surfaces of the opendihu muscles).
+  const TriangleMesh ball = make_icosphere(3);
+  PolygonSoup two = to_soup(ball);
+  const int base = static_cast<int>(two.points.size());
+  for (const Vec3& p : ball.positions) two.points.push_back(p + Vec3(1.2, 0, 0));
+  for (const Triangle& t : ball.triangles) two.polygons.push_back({t[0] + base, t[1] + base, t[2] + base});
   RepairOptions merge;
   merge.components = ComponentPolicy::merge;
-  merge.wrap_attempts = 8;
   const RepairResult r = repair_mesh(two, merge);
   require_valid(r);
   CHECK(r.report.fallback_used);
+  CHECK(r.report.output.volume > signed_volume(ball) * 1.3);  // the union, not one ball
+
+  // A stray shell far away cannot be merged without bridging empty space: refused.
+  const PolygonSoup distant = inject(ball, DefectKind::stray_component, 1);
+  CHECK_THROWS_AS(repair_mesh(distant, merge), TopologyError);
+  // By default the stray shell is dropped instead.
+  require_valid(repair_mesh(distant));
 }
 
 TEST_CASE("repair refuses NaN coordinates, empty input and bad options", "[repair]") {

@@ -92,12 +92,17 @@ TEST_CASE("fixed points are bitwise unchanged by every solver", "[springs][solve
   lattice.system.positions[lattice.index(3, 3, 4)] = Vec3(-0.0, 0.5, 0.5);  // a negative zero
   lattice.system.fixed[lattice.index(3, 3, 4)] = 1;
   const LatticeShape shape = shape_of(lattice);
-  struct Case { SolverKind solver; Backend backend; };
-  for (Case c : {Case{SolverKind::verlet, Backend::structured}, Case{SolverKind::verlet, Backend::general},
-                 Case{SolverKind::static_equilibrium, Backend::automatic}}) {
+  struct Case { SolverKind solver; Backend backend; StaticMethod method; };
+  for (Case c : {Case{SolverKind::verlet, Backend::structured, StaticMethod::momentum},
+                 Case{SolverKind::verlet, Backend::general, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::general, StaticMethod::momentum},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::newton},
+                 Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::local_global}}) {
     SettleOptions options;
     options.solver = c.solver;
     options.backend = c.backend;
+    options.static_method = c.method;
     options.tolerance = 1e-8;
     SpringSystem system = lattice.system;
     const SettleReport report = settle(system, options, &shape);
@@ -248,8 +253,8 @@ TEST_CASE("stiffness scaled over 6 orders converges or stops with SolverError, n
 
 TEST_CASE("the same lattice at 1e-6 and 1e4 length scale gives the same relative result", "[springs][solver]") {
   for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
-   for (StaticMethod method : {StaticMethod::newton, StaticMethod::local_global}) {
-    if (solver == SolverKind::verlet && method == StaticMethod::local_global) continue;
+   for (StaticMethod method : {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global}) {
+    if (solver == SolverKind::verlet && method != StaticMethod::momentum) continue;
     std::vector<std::vector<Vec3>> results;
     std::vector<SettleReport> reports;
     for (double scale : {1e-6, 1.0, 1e4}) {
@@ -293,6 +298,7 @@ TEST_CASE("static equilibrium matches a long Verlet run", "[springs][solver]") {
     const LatticeShape shape = shape_of(lattice);
     SettleOptions statics;
     statics.solver = SolverKind::static_equilibrium;
+    statics.static_method = StaticMethod::newton;
     statics.tolerance = 1e-11;
     SpringSystem a = lattice.system;
     const SettleReport ra = settle(a, statics, &shape);
@@ -308,6 +314,19 @@ TEST_CASE("static equilibrium matches a long Verlet run", "[springs][solver]") {
     CHECK(max_distance(a.positions, lattice.system.positions) > 1e-2);
     CHECK(ra.backend == "newton-cg");
     CHECK(ra.inner_iterations >= ra.iterations);
+    // The momentum method, on both data paths, reaches the same equilibrium.
+    for (Backend backend : {Backend::automatic, Backend::general}) {
+      SettleOptions momentum;
+      momentum.solver = SolverKind::static_equilibrium;
+      momentum.static_method = StaticMethod::momentum;
+      momentum.backend = backend;
+      momentum.tolerance = 1e-11;
+      SpringSystem m = lattice.system;
+      const SettleReport rm = settle(m, momentum, &shape);
+      CHECK(rm.converged);
+      CHECK(rm.backend == (backend == Backend::general ? "momentum-general" : "momentum-structured"));
+      CHECK(max_distance(a.positions, m.positions) < 1e-8);
+    }
     // Local-global (Liu et al. 2013), Anderson-accelerated and plain, reach the same equilibrium.
     statics.static_method = StaticMethod::local_global;
     SpringSystem c = lattice.system;
@@ -372,6 +391,7 @@ TEST_CASE("solver errors and option errors", "[springs][solver]") {
   const Lattice free_lattice = regular_lattice(4, SpringModel::model6, 1.0, 1.0, false);
   SettleOptions statics;
   statics.solver = SolverKind::static_equilibrium;
+  statics.static_method = StaticMethod::newton;
   SpringSystem system = free_lattice.system;
   CHECK_THROWS_AS(settle(system, statics), SolverError);
   statics.static_method = StaticMethod::local_global;

@@ -5,6 +5,7 @@
 #include "springs/fibre_template.h"
 #include "springs/lattice.h"
 #include "springs/spring_system.h"
+#include "springs/template_plot.h"
 
 #include <catch2/catch.hpp>
 
@@ -176,4 +177,18 @@ TEST_CASE("lattice converts to the thesis format and back", "[springs][lattice]"
   const Polylines fibres = fibre_polylines(lattice, lattice.system.positions);
   CHECK(fibres.lines.size() == 9);
   CHECK(fibres.lines[0].size() == 4);
+}
+
+TEST_CASE("template pictures draw every fibre and both areas", "[springs][template]") {
+  for (TemplateKind kind : all_template_kinds()) {
+    const std::string svg = template_svg(kind, 4, 2, 10);
+    CHECK(svg.rfind("<svg", 0) == 0);
+    std::size_t lines = 0, polygons = 0;
+    for (std::size_t at = 0; (at = svg.find("<polyline", at)) != std::string::npos; ++at) ++lines;
+    for (std::size_t at = 0; (at = svg.find("<polygon", at)) != std::string::npos; ++at) ++polygons;
+    CHECK(lines == 12 + 8);  // cube edges + fibres
+    CHECK(polygons == origin_area(kind).parts.size() + insertion_area(kind).parts.size());
+    CHECK(svg.find(template_name(kind)) != std::string::npos);
+  }
+  CHECK_THROWS_AS(template_svg(TemplateKind::parallel, 0, 1, 10), OptionError);
 }

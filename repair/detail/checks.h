@@ -19,4 +19,8 @@ MeshCensus census_of_triangles(const TriangleMesh& mesh, bool count_intersection
 /// one mesh of the distance to the other (CGAL AABB tree). Seeded, so reproducible.
 double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samples, std::uint64_t seed = 1);
 
+/// One-sided version: the largest distance from a sample point of `from` (vertices and
+/// `samples` area-weighted points) to the surface `to`, absolute units.
+double one_sided_distance(const TriangleMesh& from, const TriangleMesh& to, int samples, std::uint64_t seed = 1);
+
 }  // namespace fascicle::detail

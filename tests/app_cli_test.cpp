@@ -1,0 +1,158 @@
+// The command line as a user meets it: one test per error exit code of `fascicle repair`
+// (and `convert`), each checking the code, a one-line message and that no output appears.
+
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/primitives.h"
+#include "test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace fascicle;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int code;
+  std::string err;
+};
+
+Run run(const test::TempDir& dir, const std::string& args) {
+  const std::string err = dir.file("stderr.txt");
+  const int code = test::run_command("'" + test::program() + "' " + args + " 2>'" + err + "' >/dev/null");
+  std::ifstream in(err);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return {code, ss.str()};
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+// Expects the exit code, a single "fascicle: error:" line mentioning `needle`, and no output.
+void expect_failure(const test::TempDir& dir, const std::string& input, ErrorCode code, const std::string& needle,
+                    const std::string& extra = "") {
+  const std::string out = dir.file("out.off");
+  const Run r = run(dir, "--quiet repair '" + input + "' -o '" + out + "'" + extra);
+  INFO("stderr: " << r.err);
+  CHECK(r.code == exit_code(code));
+  CHECK(r.err.rfind("fascicle: error: ", 0) == 0);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(r.err.find(needle) != std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+}
+
+}  // namespace
+
+TEST_CASE("repair exit codes: one per kind of bad input", "[app]") {
+  test::TempDir dir;
+  SECTION("missing file -> 3") { expect_failure(dir, dir.file("nope.off"), ErrorCode::file_missing, "nope.off"); }
+  SECTION("empty file -> 4") {
+    write_text(dir.file("empty.off"), "");
+    expect_failure(dir, dir.file("empty.off"), ErrorCode::file_empty, "empty.off");
+  }
+  SECTION("unknown format -> 5") {
+    write_text(dir.file("mesh.xyz3"), "hello");
+    expect_failure(dir, dir.file("mesh.xyz3"), ErrorCode::unknown_format, "mesh.xyz3");
+  }
+  SECTION("truncated binary STL -> 6") {
+    std::string stl(80, ' ');
+    const std::uint32_t n = 10;
+    stl.append(reinterpret_cast<const char*>(&n), 4);
+    stl.append(50 * 3, '\0');
+    write_text(dir.file("short.stl"), stl);
+    expect_failure(dir, dir.file("short.stl"), ErrorCode::truncated, "short.stl");
+  }
+  SECTION("index out of range -> 7") {
+    write_text(dir.file("bad.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+    expect_failure(dir, dir.file("bad.off"), ErrorCode::index_out_of_range, "line 6");
+  }
+  SECTION("NaN coordinate -> 8") {
+    write_text(dir.file("nan.off"), "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n");
+    expect_failure(dir, dir.file("nan.off"), ErrorCode::bad_number, "line 4");
+  }
+  SECTION("absurd declared count -> 9") {
+    write_text(dir.file("huge.off"), "OFF\n1000000000000 1 0\n0 0 0\n");
+    expect_failure(dir, dir.file("huge.off"), ErrorCode::too_large, "huge.off");
+  }
+  SECTION("malformed text -> 10") {
+    write_text(dir.file("junk.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 two\n");
+    expect_failure(dir, dir.file("junk.off"), ErrorCode::malformed, "junk.off");
+  }
+  SECTION("unrepairable mesh -> 12, and the report says failed") {
+    write_triangle_mesh(dir.file("torus.off"), make_torus(1.0, 0.2, 32, 12));
+    expect_failure(dir, dir.file("torus.off"), ErrorCode::repair_failed, "genus",
+                   " --report '" + dir.file("r.json") + "'");
+    std::ifstream in(dir.file("r.json"));
+    const nlohmann::json j = nlohmann::json::parse(in);
+    CHECK(j["status"] == "failed");
+    CHECK(j["error_code"] == "repair_failed");
+  }
+  SECTION("option out of range -> 18") {
+    write_triangle_mesh(dir.file("ball.off"), make_icosphere(2));
+    expect_failure(dir, dir.file("ball.off"), ErrorCode::invalid_option, "weld_tolerance", " --weld-tolerance 5");
+  }
+}
+
+TEST_CASE("repair exit codes: command line, output and time limit", "[app]") {
+  test::TempDir dir;
+  write_triangle_mesh(dir.file("ball.off"), make_icosphere(2));
+  SECTION("bad command line -> 2") {
+    const Run r = run(dir, "repair '" + dir.file("ball.off") + "'");  // no -o
+    CHECK(r.code == exit_code(ErrorCode::usage));
+  }
+  SECTION("output folder missing -> 11") {
+    const Run r = run(dir, "repair '" + dir.file("ball.off") + "' -o '" + dir.file("no/such/out.off") + "'");
+    CHECK(r.code == exit_code(ErrorCode::output_failed));
+    CHECK(r.err.find("does not exist") != std::string::npos);
+  }
+  SECTION("output over the input -> 11, input untouched") {
+    const auto before = fs::file_size(dir.file("ball.off"));
+    const Run r = run(dir, "repair '" + dir.file("ball.off") + "' -o '" + dir.file("ball.off") + "'");
+    CHECK(r.code == exit_code(ErrorCode::output_failed));
+    CHECK(fs::file_size(dir.file("ball.off")) == before);
+  }
+  SECTION("time limit -> 17, no output") {
+    // A 1.2 M-triangle sample with defects takes several seconds to repair.
+    REQUIRE(run(dir, "sample --rings 1500 --segments 400 -o '" + dir.file("big.ply") + "'").code == 0);
+    const Run r = run(dir, "--time-limit 1 repair '" + dir.file("big.ply") + "' -o '" + dir.file("out.off") + "'");
+    CHECK(r.code == exit_code(ErrorCode::time_limit));
+    CHECK_FALSE(fs::exists(dir.file("out.off")));
+  }
+  SECTION("an existing output is replaced only on success") {
+    write_text(dir.file("keep.off"), "old content");
+    write_text(dir.file("bad.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+    run(dir, "repair '" + dir.file("bad.off") + "' -o '" + dir.file("keep.off") + "'");
+    std::ifstream in(dir.file("keep.off"));
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CHECK(text == "old content");
+  }
+}
+
+TEST_CASE("repair and convert succeed on good input with a complete report", "[app]") {
+  test::TempDir dir;
+  REQUIRE(run(dir, "sample -o '" + dir.file("sample.stl") + "'").code == 0);
+  const Run r = run(dir, "repair '" + dir.file("sample.stl") + "' -o '" + dir.file("fixed.vtk") + "' --report '" +
+                             dir.file("r.json") + "'");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const PolygonSoup fixed = read_polygon_soup(dir.file("fixed.vtk"));
+  CHECK(fixed.polygons.size() > 1000);
+  std::ifstream in(dir.file("r.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  CHECK(j["status"] == "repaired");
+  CHECK(j["output"]["genus"] == 0);
+  CHECK(j["input"]["boundary_edges"].get<long>() > 0);
+  for (const char* ext : {"off", "obj", "ply", "stl", "vtk"}) {
+    const std::string out = dir.file(std::string("copy.") + ext);
+    CHECK(run(dir, "convert '" + dir.file("fixed.vtk") + "' -o '" + out + "'").code == 0);
+    CHECK(read_polygon_soup(out).polygons.size() == fixed.polygons.size());
+  }
+}
