@@ -661,4 +661,25 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   return report;
 }
 
+BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
+                             bool hardware_device, std::size_t min_gpu_points) {
+  const bool verlet = solver == springs::SolverKind::verlet;
+  if (requested == "cpu") return {"cpu", "requested (--backend cpu)"};
+  if (requested == "gl" || requested == "gl-gs") {
+    if (!verlet)
+      throw OptionError("backend: " + requested + " runs the Verlet solver only; use --backend cpu or auto for "
+                        "--solver static");
+    return {requested, "requested (--backend " + requested + ")"};
+  }
+  if (requested != "auto")
+    throw OptionError("backend: unknown backend '" + requested + "' (valid: cpu, gl, gl-gs, auto)");
+  if (!verlet) return {"cpu", "auto: the static solver runs on the CPU only"};
+  if (!hardware_device) return {"cpu", "auto: no hardware GPU (EGL finds only a software renderer or none)"};
+  if (points < min_gpu_points)
+    return {"cpu", "auto: " + std::to_string(points) + " points, below the " + std::to_string(min_gpu_points) +
+                       " from which the GPU is used"};
+  return {"gl", "auto: hardware GPU and " + std::to_string(points) + " points (at least " +
+                    std::to_string(min_gpu_points) + ")"};
+}
+
 }  // namespace fascicle::shaders

@@ -113,4 +113,23 @@ GpuSettleReport settle_gpu(const GlContext& context, springs::SpringSystem& syst
                            const springs::SettleOptions& options, const GpuSettleOptions& gpu_options,
                            const springs::LatticeShape* shape = nullptr);
 
+/// The compute backend a settle runs on, and why.
+struct BackendChoice {
+  std::string backend;  ///< "cpu" | "gl" | "gl-gs"
+  std::string reason;   ///< one line for the log and the report
+};
+
+/// Points from which `auto` moves a Verlet settle to a hardware GPU. 50^3: below it the work of
+/// an iteration is too small to hide the launch and synchronisation costs. A choice, not a
+/// measurement: no hardware GPU was available when this was written (docs/BENCHMARKS.md).
+constexpr std::size_t kAutoGpuMinPoints = 125000;
+
+/// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
+/// `solver`: auto takes `gl` only for the Verlet solver, a hardware device
+/// (`hardware_device`, e.g. hardware_gl_device_available()) and at least `min_gpu_points`
+/// points, else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
+/// name or a GPU backend asked for the static solver.
+BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
+                             bool hardware_device, std::size_t min_gpu_points = kAutoGpuMinPoints);
+
 }  // namespace fascicle::shaders

@@ -293,3 +293,17 @@ TEST_CASE("GPU settle errors: divergence, static solver, structured path without
   CHECK_THROWS_AS(parse_gpu_backend("vulkan"), OptionError);
   CHECK(parse_gpu_backend("gl-gs") == GpuBackend::gl_gs);
 }
+
+TEST_CASE("backend auto picks the GPU only for Verlet on a hardware device and a large lattice", "[gpu]") {
+  const SolverKind verlet = SolverKind::verlet, statics = SolverKind::static_equilibrium;
+  CHECK(choose_backend("auto", verlet, 1000000, true).backend == "gl");
+  CHECK(choose_backend("auto", verlet, 1000000, false).backend == "cpu");
+  CHECK(choose_backend("auto", verlet, 1000000, false).reason.find("no hardware GPU") != std::string::npos);
+  CHECK(choose_backend("auto", verlet, kAutoGpuMinPoints - 1, true).backend == "cpu");
+  CHECK(choose_backend("auto", verlet, kAutoGpuMinPoints, true).backend == "gl");
+  CHECK(choose_backend("auto", statics, 1000000, true).backend == "cpu");
+  CHECK(choose_backend("cpu", verlet, 1000000, true).backend == "cpu");
+  CHECK(choose_backend("gl-gs", verlet, 10, false).backend == "gl-gs");
+  CHECK_THROWS_AS(choose_backend("gl", statics, 10, true), OptionError);
+  CHECK_THROWS_AS(choose_backend("cuda", verlet, 10, true), OptionError);
+}
