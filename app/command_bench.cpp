@@ -9,6 +9,7 @@ void add_bench_command(CLI::App& app) {
   CLI::App* bench = app.add_subcommand("bench", "Measure speed and memory (see docs/BENCHMARKS.md)");
   bench->require_subcommand(1);
   fascicle::bench::add_repair_bench(*bench);
+  fascicle::bench::add_springs_bench(*bench);
   fascicle::bench::add_gpu_bench(*bench);
 }
 

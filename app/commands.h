@@ -11,5 +11,6 @@ void add_sample_command(CLI::App& app);   // fascicle sample
 void add_repair_command(CLI::App& app);   // fascicle repair
 void add_convert_command(CLI::App& app);  // fascicle convert
 void add_bench_command(CLI::App& app);    // fascicle bench ...
+void add_settle_command(CLI::App& app);   // fascicle settle
 
 }  // namespace fascicle::app

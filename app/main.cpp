@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   fascicle::app::add_repair_command(app);
   fascicle::app::add_convert_command(app);
   fascicle::app::add_bench_command(app);
+  fascicle::app::add_settle_command(app);
 
   try {
     app.parse(argc, argv);

@@ -11,6 +11,9 @@ namespace fascicle::bench {
 /// the corpus (../shared/data/muscles and broken).
 void add_repair_bench(CLI::App& bench);
 
+/// `fascicle bench springs [--sizes ...] [--json FILE]`: the CPU spring solvers (docs/BENCHMARKS.md).
+void add_springs_bench(CLI::App& bench);
+
 /// `fascicle bench gpu [--sizes ...] [--json FILE]`: GPU spring solvers through OpenGL
 /// (bench_gpu.cpp); an error in a build without OpenGL.
 void add_gpu_bench(CLI::App& bench);
