@@ -674,10 +674,10 @@ BackendChoice choose_backend(const std::string& requested, springs::SolverKind s
   if (requested != "auto")
     throw OptionError("backend: unknown backend '" + requested + "' (valid: cpu, gl, gl-gs, auto)");
   if (!verlet) return {"cpu", "auto: the static solver runs on the CPU only"};
-  if (!hardware_device) return {"cpu", "auto: no hardware GPU (EGL finds only a software renderer or none)"};
   if (points < min_gpu_points)
     return {"cpu", "auto: " + std::to_string(points) + " points, below the " + std::to_string(min_gpu_points) +
-                       " from which the GPU is used"};
+                       " from which a GPU is used"};
+  if (!hardware_device) return {"cpu", "auto: no hardware GPU (EGL finds only a software renderer or none)"};
   return {"gl", "auto: hardware GPU and " + std::to_string(points) + " points (at least " +
                     std::to_string(min_gpu_points) + ")"};
 }

@@ -125,9 +125,9 @@ struct BackendChoice {
 constexpr std::size_t kAutoGpuMinPoints = 125000;
 
 /// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
-/// `solver`: auto takes `gl` only for the Verlet solver, a hardware device
-/// (`hardware_device`, e.g. hardware_gl_device_available()) and at least `min_gpu_points`
-/// points, else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
+/// `solver`: auto takes `gl` only for the Verlet solver, at least `min_gpu_points` points and a
+/// hardware device (`hardware_device`, e.g. hardware_gl_device_available(); only consulted
+/// after the first two tests pass), else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
 /// name or a GPU backend asked for the static solver.
 BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
                              bool hardware_device, std::size_t min_gpu_points = kAutoGpuMinPoints);
