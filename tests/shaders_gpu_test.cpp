@@ -3,6 +3,8 @@
 // solver. Runs on the software renderer (Mesa llvmpipe through EGL's surfaceless platform) on
 // every test machine; tagged [gpu].
 
+#ifdef FASCICLE_HAVE_SHADERS
+
 #include "geometry/errors.h"
 #include "shaders/gl_context.h"
 #include "shaders/gpu_settle.h"
@@ -307,3 +309,13 @@ TEST_CASE("backend auto picks the GPU only for Verlet on a hardware device and a
   CHECK_THROWS_AS(choose_backend("gl", statics, 10, true), OptionError);
   CHECK_THROWS_AS(choose_backend("cuda", verlet, 10, true), OptionError);
 }
+
+#else  // built without OpenGL/EGL/GLEW: the shaders/ target does not exist
+
+#include <catch2/catch.hpp>
+
+TEST_CASE("GPU settle tests need the OpenGL build", "[gpu]") {
+  WARN("skipped: this build has no OpenGL backend (EGL, GLEW or OpenGL was not found)");
+}
+
+#endif

@@ -2,6 +2,8 @@
 // settled model, the report names the renderer and why a backend was picked, and the errors of
 // the backend options have their exit codes. Runs on the software renderer; tagged [gpu].
 
+#ifdef FASCICLE_HAVE_SHADERS
+
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
 #include "geometry/thesis_format.h"
@@ -94,3 +96,33 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
   CHECK(test::run_command(base + " --backend gl --gpu-check-interval 0" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(!std::filesystem::exists(dir.file("x.txt")));
 }
+
+#else  // built without OpenGL/EGL/GLEW: the GPU backends are errors with exit code 15
+
+#include "geometry/errors.h"
+#include "geometry/thesis_format.h"
+#include "springs/lattice.h"
+#include "test_common.h"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+
+TEST_CASE("fascicle settle --backend gl fails cleanly in a build without OpenGL", "[gpu][program]") {
+  using namespace fascicle;
+  if (!std::filesystem::exists(test::program())) {
+    WARN("skipped: " << test::program() << " is not built");
+    return;
+  }
+  test::TempDir dir;
+  springs::LatticeOptions options;
+  options.fibres = 9;
+  options.resolution = 4;
+  write_thesis_model(dir.file("in.txt"), springs::to_thesis_model(springs::build_lattice(options)));
+  const std::string base = test::program() + " --quiet settle " + dir.file("in.txt") + " -o " + dir.file("out.txt");
+  CHECK(test::run_command(base + " --backend gl 2>/dev/null") == exit_code(ErrorCode::gpu));
+  CHECK(!std::filesystem::exists(dir.file("out.txt")));
+  CHECK(test::run_command(base + " --backend auto") == 0);
+}
+
+#endif
