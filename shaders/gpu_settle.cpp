@@ -621,7 +621,6 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   report.gl_version = context.version();
   report.hardware = context.hardware();
   report.gpu_bytes = solver->gpu_bytes();
-  const auto coefficients = springs::detail::verlet_coefficients(system, options);
   double residual = solver->residual();
   report.residual_history.push_back(residual);
   const bool run_all = options.tolerance == 0.0;
@@ -642,7 +641,8 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     }
   }
   if (!std::isfinite(residual))
-    springs::detail::throw_verlet_divergence(report.iterations, NAN, 0.0, coefficients, options);
+    springs::detail::throw_verlet_divergence(report.iterations, NAN, 0.0,
+                                             springs::detail::verlet_coefficients(system, options), options);
   solver->finish();
   const auto t2 = clock_type::now();
   const Readback back = read_positions(*solver, gpu_options.pbo_readback);
