@@ -1,13 +1,15 @@
 // Headless OpenGL through EGL (see gl_context.h) and the GL helpers shared by the solvers.
 
-#include "gl_context.h"
+#include "shaders/gl_context.h"
 
-#include "shader_sources.h"
+#include "shaders/shader_sources.h"
 
 #include <GL/glew.h>
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <mutex>
