@@ -133,6 +133,27 @@ TEST_CASE("context options are validated", "[gpu]") {
   context();  // the shared context is current again
 }
 
+TEST_CASE("a device named by index opens on that device", "[gpu]") {
+  const std::vector<GlDeviceInfo> devices = list_gl_devices();
+  INFO(devices.size() << " EGL devices");
+  int opened = 0;
+  for (const GlDeviceInfo& device : devices) {
+    GlContextOptions options;
+    options.device = device.index;
+    try {
+      const GlContext gl(options);
+      CHECK(gl.platform() == "device " + std::to_string(device.index));
+      CHECK(!gl.renderer().empty());
+      if (device.software) CHECK(!gl.hardware());
+      ++opened;
+    } catch (const GpuError& e) {
+      WARN("device " << device.index << " has no OpenGL core context: " << e.what());
+    }
+  }
+  if (!devices.empty()) CHECK(opened > 0);
+  context();  // the shared context is current again
+}
+
 TEST_CASE("a shader that does not compile throws GpuError carrying the driver's log", "[gpu]") {
   context();
   try {
