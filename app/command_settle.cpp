@@ -147,9 +147,12 @@ void run_settle(const SettleArgs& args) {
     gpu_options.check_interval = args.check_interval;
     const shaders::GpuSettleReport gpu = shaders::settle_gpu(context, system, options, gpu_options, shape_ptr);
     report = gpu;
+    if (gpu.stalled)
+      spdlog::warn("the residual stopped falling at {:.3g} on the GPU (float32 precision); use --backend cpu for "
+                   "a tolerance below it", gpu.residual);
     gpu_info = {{"renderer", gpu.renderer}, {"gl_version", gpu.gl_version}, {"hardware", gpu.hardware},
                 {"platform", context.platform()}, {"readback_seconds", gpu.readback_seconds},
-                {"gpu_bytes", gpu.gpu_bytes}, {"check_interval", args.check_interval}};
+                {"gpu_bytes", gpu.gpu_bytes}, {"check_interval", args.check_interval}, {"stalled", gpu.stalled}};
 #endif
   }
   spdlog::info("settled {} points ({} fixed, {} springs) with {} [{}]: {} iterations, residual {:.3g}{}, {:.3f} s",

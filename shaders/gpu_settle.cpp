@@ -33,6 +33,7 @@ const char* gpu_backend_name(GpuBackend backend) { return backend == GpuBackend:
 
 void GpuSettleOptions::validate() const {
   if (check_interval < 1) throw OptionError("check_interval: must be >= 1, got " + std::to_string(check_interval));
+  if (stall_checks < 1) throw OptionError("stall_checks: must be >= 1, got " + std::to_string(stall_checks));
   if (texture_width < 1 || texture_width > 16384)
     throw OptionError("texture_width: must be in 1..16384, got " + std::to_string(texture_width));
 }
@@ -630,6 +631,8 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     residual = solver->residual();
     report.residual_history.push_back(residual);
   } else if (residual > options.tolerance) {
+    double best = residual;
+    int without_progress = 0;
     while (report.iterations < options.max_iterations) {
       const int block = std::min(gpu_options.check_interval, options.max_iterations - report.iterations);
       solver->run(block);
@@ -638,6 +641,13 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       report.residual_history.push_back(residual);
       if (!std::isfinite(residual)) break;
       if (residual <= options.tolerance) break;
+      if (residual < 0.99 * best) {
+        best = residual;
+        without_progress = 0;
+      } else if (++without_progress >= gpu_options.stall_checks) {
+        report.stalled = true;  // float32 rounding dominates the forces: further steps change nothing
+        break;
+      }
     }
   }
   if (!std::isfinite(residual))

@@ -48,6 +48,10 @@ struct GpuSettleOptions {
   bool pbo_readback = true; ///< gl-gs: read the positions back through a pixel buffer object
                             ///< (default true: the thesis measured it 25 % faster)
   int texture_width = 2048; ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
+  int stall_checks = 16;    ///< stop when this many residual checks in a row bring no new minimum
+                            ///< below 0.99 of the best so far: float32 has reached its attainable
+                            ///< accuracy (about 1e-5 relative on template lattices), >= 1
+                            ///< (default 16)
   /// Throws OptionError naming the bad field.
   void validate() const;
 };
@@ -102,11 +106,13 @@ struct GpuSettleReport : springs::SettleReport {
   bool hardware = false;       ///< false for a software renderer
   double readback_seconds = 0.0;  ///< final readback
   std::size_t gpu_bytes = 0;   ///< buffers and textures
+  bool stalled = false;        ///< stopped because the residual no longer fell (stall_checks)
 };
 
 /// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual
 /// on the GPU after each, stops at the tolerance or max_iterations (tolerance 0 runs exactly
-/// max_iterations and checks once at the end), reads the positions back once and writes the
+/// max_iterations and checks once at the end) or when the residual stops falling in float32
+/// (GpuSettleOptions::stall_checks; report.stalled), reads the positions back once and writes the
 /// free points into system.positions (fixed points keep their exact input bits). The residual
 /// history holds one value per check. Throws as make_gpu_solver, SolverError on divergence.
 GpuSettleReport settle_gpu(const GlContext& context, springs::SpringSystem& system,
