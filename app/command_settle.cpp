@@ -133,13 +133,26 @@ void run_settle(const SettleArgs& args) {
   reason = args.backend == "cpu" ? "requested (--backend cpu)" : "auto: this build has no OpenGL backend";
 #endif
   spdlog::info("backend {}: {}", compute, reason);
+#ifdef FASCICLE_HAVE_SHADERS
+  std::unique_ptr<shaders::GlContext> gl;
+  if (compute != "cpu") {
+    shaders::GlContextOptions context_options;
+    context_options.device = args.gl_device;
+    try {
+      gl = std::make_unique<shaders::GlContext>(context_options);
+    } catch (const shaders::GpuError& e) {
+      if (args.backend != "auto") throw;
+      spdlog::warn("backend auto: no OpenGL context ({}); using the CPU", e.what());
+      compute = "cpu";
+      reason += "; no OpenGL context, fell back to cpu";
+    }
+  }
+#endif
   if (compute == "cpu") {
     report = springs::settle(system, options, shape_ptr);
   } else {
 #ifdef FASCICLE_HAVE_SHADERS
-    shaders::GlContextOptions context_options;
-    context_options.device = args.gl_device;
-    const shaders::GlContext context(context_options);
+    const shaders::GlContext& context = *gl;
     spdlog::info("OpenGL: {} | {} | {}{}", context.renderer(), context.version(), context.platform(),
                  context.hardware() ? "" : " (software renderer, no GPU)");
     shaders::GpuSettleOptions gpu_options;
