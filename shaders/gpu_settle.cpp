@@ -111,19 +111,32 @@ void storage(const Buffer& buffer, std::size_t bytes, const void* data, const ch
   total += bytes;
 }
 
-// Host copies of the shared per-point data, float32.
-std::vector<float> positions_vec4(const SpringSystem& system) {
+// The GPU holds positions relative to the centre of their bounding box, in float32: rounding is
+// then relative to the lattice's extent, not to its distance from the origin (CT coordinates are
+// often hundreds of millimetres from it while springs are about one millimetre long).
+Vec3 bounding_box_centre(const SpringSystem& system) {
+  if (system.positions.empty()) return Vec3::Zero();
+  Vec3 lo = system.positions[0], hi = system.positions[0];
+  for (const Vec3& p : system.positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return 0.5 * (lo + hi);
+}
+
+// Host copies of the shared per-point data, float32, relative to `centre`; w = 1 marks fixed.
+std::vector<float> positions_vec4(const SpringSystem& system, const Vec3& centre) {
   std::vector<float> out(4 * system.positions.size());
   for (std::size_t i = 0; i < system.positions.size(); ++i) {
-    for (int c = 0; c < 3; ++c) out[4 * i + c] = static_cast<float>(system.positions[i][c]);
+    for (int c = 0; c < 3; ++c) out[4 * i + c] = static_cast<float>(system.positions[i][c] - centre[c]);
     out[4 * i + 3] = system.fixed[i] ? 1.0f : 0.0f;
   }
   return out;
 }
 
-std::vector<Vec3> vec4_to_positions(const std::vector<float>& data, std::size_t n) {
+std::vector<Vec3> vec4_to_positions(const std::vector<float>& data, std::size_t n, const Vec3& centre) {
   std::vector<Vec3> out(n);
-  for (std::size_t i = 0; i < n; ++i) out[i] = Vec3(data[4 * i], data[4 * i + 1], data[4 * i + 2]);
+  for (std::size_t i = 0; i < n; ++i) out[i] = Vec3(data[4 * i], data[4 * i + 1], data[4 * i + 2]) + centre;
   return out;
 }
 
@@ -191,7 +204,8 @@ class ComputeVerlet final : public GpuSpringSolver {
     if (n_ > std::numeric_limits<int>::max() / 16) throw GpuError("OpenGL: too many points for 32-bit indices");
     grid_ = grid_for(n_);
     scale_ = springs::residual_force_scale(system);
-    const std::vector<float> x = positions_vec4(system);
+    centre_ = bounding_box_centre(system);
+    const std::vector<float> x = positions_vec4(system, centre_);
     storage(x_[0], x.size() * sizeof(float), x.data(), "positions", bytes_);
     storage(x_[1], x.size() * sizeof(float), x.data(), "previous positions", bytes_);
     storage(partial_, grid_.groups() * sizeof(float), nullptr, "residual partials", bytes_);
@@ -308,7 +322,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(data.size() * sizeof(float)),
                        data.data());
     check_gl("position readback");
-    return vec4_to_positions(data, n_);
+    return vec4_to_positions(data, n_, centre_);
   }
 
   void finish() override { glFinish(); }
@@ -347,6 +361,7 @@ class ComputeVerlet final : public GpuSpringSolver {
   int current_ = 0;
   std::unique_ptr<Program> program_;
   GLint u_write_ = -1, u_measure_ = -1;
+  Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
 };
 
@@ -370,7 +385,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     height_ = std::max(height_, 1);
     const std::size_t texels = static_cast<std::size_t>(width_) * height_;
     std::vector<float> x(4 * texels, 0.0f);
-    const std::vector<float> given = positions_vec4(system);
+    centre_ = bounding_box_centre(system);
+    const std::vector<float> given = positions_vec4(system, centre_);
     std::copy(given.begin(), given.end(), x.begin());
     for (int t = 0; t < 3; ++t) make_texture(positions_[t], x.data(), "position texture");
     make_texture(force_, nullptr, "force texture");
@@ -507,7 +523,7 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     }
     glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
     check_gl("position readback");
-    return vec4_to_positions(data, n_);
+    return vec4_to_positions(data, n_, centre_);
   }
 
   void finish() override { glFinish(); }
@@ -570,6 +586,7 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
   Grid grid_;
   int current_ = 0;  // previous = current + 1, next = current + 2 (mod 3)
   std::unique_ptr<Program> force_program_, integrate_program_, residual_program_;
+  Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
 };
 

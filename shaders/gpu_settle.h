@@ -18,6 +18,10 @@
 ///   texture; a full-screen pass integrates into three rotating position textures. Readback
 ///   with glReadPixels, directly or through a pixel buffer object.
 ///
+/// Positions live on the GPU relative to the centre of their bounding box (float32 rounding then
+/// scales with the lattice's extent, not with its distance from the origin: measured, a lattice
+/// 1000 units away agrees with the CPU to 1e-7 of its size instead of 1.6e-4).
+///
 /// Divergence (a NaN/Inf force at a check) throws SolverError like the CPU solver; the energy
 /// bound of the CPU solver is not evaluated on the GPU.
 

@@ -301,6 +301,27 @@ TEST_CASE("settle_gpu stops when float32 cannot reach the tolerance", "[gpu]") {
   }
 }
 
+TEST_CASE("a lattice far from the origin keeps float32 precision (positions relative to its centre)", "[gpu]") {
+  // CT coordinates: 1000 units from the origin, where float32's spacing is 6e-5, while the
+  // lattice is about 2 across. Relative to the centre the GPU keeps about 1e-7 of the size.
+  Lattice lattice = moved_cube(12, SpringModel::model26);
+  for (Vec3& p : lattice.system.positions) p += Vec3(1000.0, -700.0, 1200.0);
+  const LatticeShape shape = shape_of(lattice);
+  const SettleOptions options = fixed_iterations(300);
+  SpringSystem cpu = lattice.system;
+  settle(cpu, options, &shape);
+  const double size = lattice_size(lattice.system.positions);
+  for (GpuBackend backend : {GpuBackend::gl, GpuBackend::gl_gs}) {
+    GpuSettleOptions gpu_options;
+    gpu_options.backend = backend;
+    SpringSystem gpu = lattice.system;
+    settle_gpu(context(), gpu, options, gpu_options, &shape);
+    const double difference = max_distance(cpu.positions, gpu.positions);
+    INFO(gpu_backend_name(backend) << ": max difference " << difference << ", size " << size);
+    CHECK(difference < 2e-6 * size);
+  }
+}
+
 TEST_CASE("PBO and glReadPixels readbacks agree with the storage-buffer path", "[gpu]") {
   const Lattice lattice = moved_cube(12, SpringModel::model6);
   const LatticeShape shape = shape_of(lattice);
