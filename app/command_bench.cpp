@@ -10,6 +10,7 @@ void add_bench_command(CLI::App& app) {
   bench->require_subcommand(1);
   fascicle::bench::add_repair_bench(*bench);
   fascicle::bench::add_springs_bench(*bench);
+  fascicle::bench::add_sphere_bench(*bench);
 }
 
 }  // namespace fascicle::app

@@ -12,5 +12,6 @@ void add_repair_command(CLI::App& app);   // fascicle repair
 void add_convert_command(CLI::App& app);  // fascicle convert
 void add_bench_command(CLI::App& app);    // fascicle bench ...
 void add_settle_command(CLI::App& app);   // fascicle settle
+void add_sphere_command(CLI::App& app);   // fascicle sphere
 
 }  // namespace fascicle::app

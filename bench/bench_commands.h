@@ -10,6 +10,7 @@ namespace fascicle::bench {
 /// `fascicle bench repair [--data DIR] [--json FILE]`: repair time and result for every mesh of
 /// the corpus (../shared/data/muscles and broken).
 void add_repair_bench(CLI::App& bench);
+void add_sphere_bench(CLI::App& bench);  // fascicle bench sphere (bench/bench_sphere.cpp)
 
 /// `fascicle bench springs [--sizes ...] [--json FILE]`: the CPU spring solvers (docs/BENCHMARKS.md).
 void add_springs_bench(CLI::App& bench);

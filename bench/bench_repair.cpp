@@ -101,6 +101,7 @@ void run_repair_bench(const RepairBenchArgs& args) {
       if (rep.contains("output")) rec["faces_out"] = rep["output"]["faces"];
       if (rep.contains("seconds")) rec["seconds"] = rep["seconds"];
       if (rep.contains("hausdorff")) rec["hausdorff"] = rep["hausdorff"];
+      if (rep.contains("hausdorff_whole_input")) rec["hausdorff_whole_input"] = rep["hausdorff_whole_input"];
       if (rep.contains("fallback")) rec["fallback"] = rep["fallback"];
       if (rep.contains("kept_area_share")) rec["kept_area_share"] = rep["kept_area_share"];
       if (rep.contains("error")) rec["error"] = rep["error"];

@@ -155,6 +155,7 @@ class RepairPipeline {
     const double finest = options_.wrap_alpha * diagonal;
     const auto wrap_start = Clock::now();
     std::string last_failure;
+    double last_wrap_seconds = 0.0;
 
     auto attempt = [&](double alpha) -> std::optional<TriangleMesh> {
       const double offset = alpha * options_.wrap_offset_ratio;
@@ -174,16 +175,25 @@ class RepairPipeline {
         result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left);
         return result ? static_cast<long>(result->triangles.size()) : 0L;
       }, "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
+      last_wrap_seconds = report_.steps.back().seconds;
+      const std::size_t wrap_step = report_.steps.size() - 1;
       if (!result) {
-        report_.steps.back().note += ": stopped at the time budget";
+        report_.steps[wrap_step].note += ": stopped at the time budget";
         last_failure = "wrap at alpha " + std::to_string(alpha) + " ran past the time budget";
         return std::nullopt;
       }
-      if (options_.components == ComponentPolicy::largest) *result = largest_shell(*result);
-      const std::string failure = verify_genus0(*result);
+      std::string failure;
+      if (options_.components == ComponentPolicy::largest) {
+        double share = 1.0;
+        *result = largest_shell(*result, share);
+        if (share < options_.min_largest_share)
+          failure = "the wrap falls into separate shells and the largest holds only " +
+                    std::to_string(static_cast<int>(std::round(share * 100))) + "% of the volume";
+      }
+      if (failure.empty()) failure = verify_genus0(*result);
       if (!failure.empty()) {
         last_failure = "wrap at alpha " + std::to_string(alpha) + ": " + failure;
-        report_.steps.back().note += ": " + failure;
+        report_.steps[wrap_step].note += ": " + failure;
         spdlog::debug("{}", last_failure);
         return std::nullopt;
       }
@@ -193,11 +203,11 @@ class RepairPipeline {
       if (stray > options_.wrap_max_distance) {
         last_failure = "wrap at alpha " + std::to_string(alpha) + " lies " + std::to_string(stray * 100.0) +
                        "% of the diagonal away from the input (it bridges a hole or handle)";
-        report_.steps.back().note += ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
+        report_.steps[wrap_step].note += ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
         spdlog::debug("{}", last_failure);
         return std::nullopt;
       }
-      report_.steps.back().note += ": genus 0";
+      report_.steps[wrap_step].note += ": genus 0";
       return result;
     };
 
@@ -208,9 +218,9 @@ class RepairPipeline {
       if (best) {
         // Halving alpha makes about four times the faces and takes at least four times as long:
         // stop refining when that would not fit in what is left of the budget.
-        const double previous = report_.steps.back().seconds;
-        if (4.0 * previous > options_.wrap_seconds - seconds_since(wrap_start)) {
-          report_.steps.back().note += "; finer levels skipped: they would not fit in the time budget";
+        if (4.0 * last_wrap_seconds > options_.wrap_seconds - seconds_since(wrap_start)) {
+          report_.steps.push_back({"alpha_wrap_refinement_stopped", 0, 0.0,
+                                   "finer levels skipped: they would not fit in the time budget"});
           break;
         }
       }
@@ -376,11 +386,15 @@ class RepairPipeline {
   }
 
   // The largest shell of a wrap by |volume| (a wrap of scattered pieces gives several shells).
-  TriangleMesh largest_shell(const TriangleMesh& wrapped) {
+  TriangleMesh largest_shell(const TriangleMesh& wrapped, double& share) {
+    share = 1.0;
     const int n = static_cast<int>(wrapped.positions.size());
     std::vector<int> parent(n);
     std::iota(parent.begin(), parent.end(), 0);
-    std::function<int(int)> find = [&](int a) { return parent[a] == a ? a : parent[a] = find(parent[a]); };
+    auto find = [&](int a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
     for (const Triangle& t : wrapped.triangles) {
       parent[find(t[1])] = find(t[0]);
       parent[find(t[2])] = find(t[0]);
@@ -388,13 +402,15 @@ class RepairPipeline {
     std::unordered_map<int, TriangleMesh> shells;
     for (const Triangle& t : wrapped.triangles) shells[find(t[0])].triangles.push_back(t);
     if (shells.size() <= 1) return wrapped;
-    double best = -1.0;
+    double best = -1.0, total = 0.0;
     TriangleMesh result;
     for (auto& [root, shell] : shells) {
       shell.positions = wrapped.positions;
       const double v = std::abs(signed_volume(shell));
+      total += v;
       if (v > best) best = v, result = std::move(shell);
     }
+    share = total > 0.0 ? best / total : 0.0;
     // Compact the points.
     std::vector<int> index(n, -1);
     TriangleMesh compact;

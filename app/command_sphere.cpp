@@ -1,0 +1,120 @@
+// fascicle sphere IN -o OUT [--report R.json] [--sphere-method tutte|relax]: repairs the mesh,
+// maps it onto the unit sphere (same connectivity) and reports the map's quality; with landmark
+// files (or automatically) also the attachment areas' centres on the sphere.
+
+#include "app/commands.h"
+#include "app/report_file.h"
+#include "geometry/atomic_file.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/read_points.h"
+#include "morph/attachments.h"
+#include "morph/sphere_map.h"
+#include "repair/repair.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <memory>
+
+namespace fascicle::app {
+
+namespace {
+
+struct SphereArgs {
+  std::string input, output, report, method = "tutte", origin, insertion;
+  SphereMapOptions options;
+  AttachmentOptions attachments;
+};
+
+nlohmann::json area_json(const AttachmentArea& area, const SphereMap& map, const TriangleMesh& mesh) {
+  const Vec3 c = sphere_centre(area, map.positions, mesh.triangles);
+  const Vec3 s = area.centroid();
+  return {{"source", area.source},
+          {"points", area.points.size()},
+          {"max_landmark_distance", area.max_distance},
+          {"surface_centroid", {s.x(), s.y(), s.z()}},
+          {"sphere_centre", {c.x(), c.y(), c.z()}}};
+}
+
+void run_sphere(const SphereArgs& args) {
+  SphereMapOptions options = args.options;
+  options.method = sphere_method_from_string(args.method);
+  options.validate();
+  args.attachments.validate();
+  if ((args.origin.empty()) != (args.insertion.empty()))
+    throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
+  check_not_same_file(args.input, args.output);
+  if (!args.report.empty()) check_not_same_file(args.input, args.report);
+  const PolygonSoup soup = read_polygon_soup(args.input);
+  spdlog::info("read {}: {} points, {} faces", args.input, soup.points.size(), soup.polygons.size());
+  nlohmann::json report = {{"input_file", args.input}, {"output_file", args.output}};
+  try {
+    const RepairResult repaired = repair_mesh(soup, RepairOptions{});
+    report["repair"] = repaired.report.to_json();
+    const TriangleMesh& mesh = repaired.mesh;
+    // Landmarks are checked before the map: a wrong file is the user's first thing to fix.
+    Attachments areas;
+    if (!args.origin.empty())
+      areas = landmark_attachments(mesh, read_points(args.origin), args.origin, read_points(args.insertion),
+                                   args.insertion, args.attachments);
+    else
+      areas = automatic_attachments(mesh, args.attachments);
+    const SphereMap map = map_to_sphere(mesh, options);
+    report["sphere"] = map.report.to_json();
+    report["origin"] = area_json(areas.origin, map, mesh);
+    report["insertion"] = area_json(areas.insertion, map, mesh);
+    report["status"] = map.report.status;
+    if (map.report.status != "ok") {
+      if (!args.report.empty()) write_json_report(args.report, report);
+      throw SolverError("sphere map (" + map.report.method + ") failed: " + map.report.failure +
+                        "; no output written" + (args.report.empty() ? "" : ", details in " + args.report));
+    }
+    write_triangle_mesh(args.output, TriangleMesh{map.positions, mesh.triangles});
+    if (!args.report.empty()) write_json_report(args.report, report);
+    const SphereQuality& q = map.report.quality;
+    spdlog::info("wrote {}: {} vertices on the sphere ({} start), {} flipped, {} degenerate, area ratio {:.3g}..{:.3g}, "
+                 "mean |log| {:.3f} ({:.3f} s)",
+                 args.output, map.positions.size(), map.report.initial_map.empty() ? map.report.method : map.report.initial_map,
+                 q.flipped, q.degenerate, q.area_ratio_min, q.area_ratio_max, q.area_log_mean, map.report.seconds);
+  } catch (const Error& e) {
+    if (!args.report.empty() && !report.contains("status")) {
+      report["status"] = "failed";
+      report["error"] = e.what();
+      report["error_code"] = error_name(e.code());
+      write_json_report(args.report, report);
+    }
+    throw;
+  }
+}
+
+}  // namespace
+
+void add_sphere_command(CLI::App& app) {
+  auto args = std::make_shared<SphereArgs>();
+  CLI::App* cmd = app.add_subcommand("sphere", "Repair a muscle and map it onto the unit sphere (bijective)");
+  cmd->add_option("input", args->input, "Input mesh (off, obj, stl, ply, vtk, txt)")->required();
+  cmd->add_option("-o,--output", args->output, "Sphere mesh, same connectivity (off, obj, stl, ply, vtk)")->required();
+  cmd->add_option("--report", args->report, "Write a JSON report (repair, map quality, attachment centres)");
+  cmd->add_option("--sphere-method", args->method, "tutte: guaranteed bijective (default); relax: the thesis's method")
+      ->check(CLI::IsMember({"tutte", "relax"}))
+      ->capture_default_str();
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
+  cmd->add_option("--max-landmark-distance", args->attachments.max_landmark_distance,
+                  "Landmarks farther from the surface than this fraction of the diagonal are an error")
+      ->capture_default_str();
+  cmd->add_option("--end-fraction", args->attachments.end_fraction,
+                  "Automatic areas: share of the length taken at each end")
+      ->capture_default_str();
+  cmd->add_option("--balance-sweeps", args->options.balance_sweeps, "Area-balancing sweeps (tutte)")
+      ->capture_default_str();
+  cmd->add_option("--reweight-rounds", args->options.reweight_rounds, "Tutte reweighting rounds (tutte)")
+      ->capture_default_str();
+  cmd->add_option("--relax-iterations", args->options.relax_max_iterations, "Iteration cap per relaxation (relax)")
+      ->capture_default_str();
+  cmd->add_option("--seed", args->options.seed, "Seed of the random tetrahedron (relax)")->capture_default_str();
+  cmd->callback([args] { run_sphere(*args); });
+}
+
+}  // namespace fascicle::app

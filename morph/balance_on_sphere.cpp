@@ -1,0 +1,175 @@
+// Flip-free improvement of a bijective sphere map: Moebius centring of the surface-area measure
+// and a Gauss-Seidel Newton relaxation that balances spherical areas against surface areas.
+#include "geometry/errors.h"
+#include "morph/sphere_steps.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace fascicle::detail {
+namespace {
+
+/// Area centroid: sum over triangles of share_t times the unit vector through the chord centroid.
+Vec3 area_centroid(const TriangleMesh& mesh, const std::vector<double>& shares, const std::vector<Vec3>& x) {
+  Vec3 c = Vec3::Zero();
+  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+    const Triangle& t = mesh.triangles[f];
+    const Vec3 m = x[t[0]] + x[t[1]] + x[t[2]];
+    const double norm = m.norm();
+    if (norm > 0.0) c += shares[f] / norm * m;
+  }
+  return c;
+}
+
+/// True when the Moebius step with centre `step` treated every triangle as a conformal map
+/// would: a small triangle's area shrinks at most by ((1 - |s|) / (1 + |s|))^2; a triangle that
+/// shrinks by more than 0.9 of that (a sliver bending over) or drops below min_step_det refuses it.
+bool conformal_enough(const TriangleMesh& mesh, const std::vector<Vec3>& before, const std::vector<Vec3>& after,
+                      double step) {
+  const double bound = 0.9 * std::pow((1.0 - step) / (1.0 + step), 2);
+  for (const Triangle& t : mesh.triangles) {
+    const double d = sphere_det(after[t[0]], after[t[1]], after[t[2]]);
+    const double old = sphere_det(before[t[0]], before[t[1]], before[t[2]]);
+    if (!(d >= bound * old) || !(d > std::min(min_step_det, old))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+int mobius_center(const TriangleMesh& mesh, const std::vector<double>& shares, std::vector<Vec3>& sphere,
+                  int max_steps, double tolerance, double& residual) {
+  std::vector<Vec3> trial(sphere.size());
+  Vec3 c = area_centroid(mesh, shares, sphere);
+  int steps = 0;
+  double factor = 1.0;
+  while (steps < max_steps && c.norm() > tolerance) {
+    // Stay well inside the unit ball: |c| near 1 would send nearly everything to one point.
+    Vec3 step = factor * c;
+    if (step.norm() > 0.9) step *= 0.9 / step.norm();
+    const double k = 1.0 - step.squaredNorm();
+    for (std::size_t i = 0; i < sphere.size(); ++i) {
+      const Vec3 d = sphere[i] - step;
+      const double d2 = d.squaredNorm();
+      trial[i] = d2 > 0.0 ? Vec3(k / d2 * d - step) : sphere[i];
+      trial[i].normalize();
+    }
+    ++steps;
+    if (!conformal_enough(mesh, sphere, trial, step.norm())) {
+      factor *= 0.5;
+      if (factor < 1e-6) break;
+      continue;
+    }
+    const Vec3 next = area_centroid(mesh, shares, trial);
+    if (next.norm() >= c.norm()) {
+      factor *= 0.5;
+      if (factor < 1e-6) break;
+      continue;
+    }
+    sphere.swap(trial);
+    c = next;
+    factor = std::min(1.0, factor * 2.0);
+  }
+  residual = c.norm();
+  return steps;
+}
+
+int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std::vector<double>& shares,
+                  std::vector<Vec3>& x, int max_sweeps, double tolerance, int& rejected) {
+  // Energy E = sum_t a_t^2 / det_t: convex in each vertex on its own (det_t is linear in it),
+  // infinite at a flip, smallest when det_t is proportional to a_t. Each vertex takes one
+  // damped Newton step of its own part of E on the tangent plane, then is renormalised; a step
+  // that leaves any incident det below min_step_det or raises the energy is halved, up to 10
+  // times, then refused.
+  const int nv = static_cast<int>(x.size());
+  std::vector<double> a2(shares.size());
+  for (std::size_t f = 0; f < shares.size(); ++f) a2[f] = shares[f] * shares[f];
+  auto total_energy = [&]() {
+    double e = 0.0;
+    for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+      const Triangle& t = mesh.triangles[f];
+      const double d = sphere_det(x[t[0]], x[t[1]], x[t[2]]);
+      if (!(d > 0.0)) return std::numeric_limits<double>::infinity();
+      e += a2[f] / d;
+    }
+    return e;
+  };
+  double energy = total_energy();
+  if (!std::isfinite(energy)) return 0;  // not a valid start: nothing to balance safely
+  std::vector<double> before;
+  int sweep = 0;
+  for (; sweep < max_sweeps; ++sweep) {
+    for (int v = 0; v < nv; ++v) {
+      const int begin = adj.corner_start[v], end = adj.corner_start[v + 1];
+      before.clear();
+      const Vec3 p = x[v];
+      Vec3 g = Vec3::Zero();
+      Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+      double local = 0.0;
+      bool ok = true;
+      for (int c = begin; c < end; ++c) {
+        // det(p, b, c) = (b x c) . p; written relative to p for accuracy on small triangles.
+        const Vec3& b = x[adj.corner_next[c]];
+        const Vec3& d = x[adj.corner_prev[c]];
+        const Vec3 n = (b - p).cross(d - p);
+        const double det = n.dot(p);
+        if (!(det > 0.0)) {
+          ok = false;
+          break;
+        }
+        const double w = a2[adj.corner_face[c]];
+        before.push_back(det);
+        local += w / det;
+        g -= (w / (det * det)) * n;
+        h += (2.0 * w / (det * det * det)) * n * n.transpose();
+      }
+      if (!ok) continue;
+      // Tangent frame at p.
+      const Vec3 e1 = (std::abs(p.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(p).normalized();
+      const Vec3 e2 = p.cross(e1);
+      Eigen::Matrix<double, 3, 2> frame;
+      frame << e1, e2;
+      const Eigen::Vector2d g2 = frame.transpose() * g;
+      // Moving along the sphere adds the curvature term -(g . p) |y|^2.
+      const Eigen::Matrix2d h2 = frame.transpose() * h * frame + (-g.dot(p)) * Eigen::Matrix2d::Identity();
+      Eigen::Vector2d y = -h2.ldlt().solve(g2);
+      if (!y.allFinite()) continue;
+      bool moved = false;
+      for (int attempt = 0; attempt < 10; ++attempt, y *= 0.5) {
+        const Vec3 q = (p + frame * y).normalized();
+        double trial = 0.0;
+        bool valid = true;
+        for (int c = begin; c < end; ++c) {
+          const Vec3& b = x[adj.corner_next[c]];
+          const Vec3& d = x[adj.corner_prev[c]];
+          const double det = (b - q).cross(d - q).dot(q);
+          // A triangle may not drop below min_step_det (or below its own det if it started there).
+          if (!(det > std::min(min_step_det, before[c - begin]))) {
+            valid = false;
+            break;
+          }
+          trial += a2[adj.corner_face[c]] / det;
+        }
+        if (valid && trial <= local) {
+          x[v] = q;
+          moved = true;
+          break;
+        }
+      }
+      if (!moved) ++rejected;
+    }
+    if ((sweep + 1) % 5 == 0 || sweep + 1 == max_sweeps) {
+      const double next = total_energy();
+      const bool done = energy - next < tolerance * 5.0 * energy;
+      energy = next;
+      if (done) {
+        ++sweep;
+        break;
+      }
+    }
+  }
+  return sweep;
+}
+
+}  // namespace fascicle::detail

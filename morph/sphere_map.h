@@ -1,0 +1,168 @@
+#pragma once
+/// \file sphere_map.h
+/// Mapping a closed genus-0 muscle surface onto the unit sphere, one point per vertex, such that
+/// the map is a bijection: every spherical triangle keeps the mesh's orientation,
+/// det(v0, v1, v2) = (v0 x v1) . v2 > 0, none is degenerate, and together they cover the sphere
+/// once (the spherical areas add up to 4 pi). Pipeline step 3 of ../shared/docs/METHOD.md.
+///
+/// Two methods, selectable so they can be compared on the same mesh:
+///  - `tutte` (default, guaranteed bijective): cut one triangle out, embed the remaining disk by
+///    Tutte's barycentric method (Floater 2003, "One-to-one piecewise linear mappings over
+///    triangulations": positive weights + convex boundary give a one-to-one map) with positive
+///    cotangent weights whose conduction along the muscle's long direction is raised (so that a
+///    long thin muscle is embedded as if it were short); lift it to the sphere by
+///    inverse stereographic projection with an origin and scale chosen so that every geodesic
+///    triangle keeps its planar orientation (a power-of-a-point condition, checked); centre the
+///    area by Moebius transformations (the conformal barycentre of the surface-area measure);
+///    long muscles (elongation above `tube_elongation`) instead start from a tube map: cut along
+///    a shortest path between the two ends, Tutte-embed into a convex hexagon, lift by Lambert's
+///    cylindrical equal-area projection (the stereographic start of a 50:1 tube would need
+///    coordinates of e^-100); whichever start is used is checked with exact predicates, locally
+///    untangled if needed, and the other start is tried when it is not a bijection; a tube start
+///    is then re-embedded a few times with weights scaled by the area ratios (each round again a
+///    Tutte embedding with positive weights, so still one-to-one), which lets crowded branches
+///    grow;
+///    then balance areas by a Gauss-Seidel Newton relaxation of sum_t a_t^2 / det_t that rejects
+///    (halves) every step that would make a triangle flip or degenerate.
+///  - `relax`: the thesis's method (Zeleny 2011, ch. 6.3, after Alexa 2000): Ritter bounding
+///    sphere, centre moved inside by an exact inside test, projection by normalisation, random
+///    tetrahedron anchors, centroid relaxation with renormalisation, collapse check, orientation
+///    check. It may fail (flipped triangles); the report then says how.
+
+#include "geometry/mesh.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <string>
+#include <vector>
+
+namespace fascicle {
+
+/// Sphere-map method.
+enum class SphereMethod {
+  tutte,  ///< Tutte embedding + stereographic lift + flip-free relaxation (default)
+  relax,  ///< the thesis's normalise-and-relax method (may fail)
+};
+
+/// "tutte" or "relax".
+const char* to_string(SphereMethod method);
+/// Parses "tutte" / "relax"; throws OptionError naming `--sphere-method` otherwise.
+SphereMethod sphere_method_from_string(const std::string& name);
+
+/// Options of the sphere map.
+struct SphereMapOptions {
+  /// Method (default tutte).
+  SphereMethod method = SphereMethod::tutte;
+
+  // --- tutte ---
+  /// Raise the Tutte weights of edges along the muscle's local long direction by k^2, with
+  /// k = (end-to-end edge distance)^2 / area, about length / circumference (default true). Any
+  /// positive weights give a bijection; these keep long muscles from being crowded
+  /// exponentially towards their ends (a conformal map of a 50:1 tube spans e^-100).
+  bool anisotropic = true;
+  /// Meshes more elongated than this ((end-to-end edge distance)^2 / area; 0.8 for a sphere,
+  /// 16 for a 50:1 capsule) start from the tube map instead of the stereographic lift
+  /// (default 1.0, measured on the corpus: below it the stereographic start balances areas
+  /// better, above it the tube start). Either way the other start is tried when the first is not a bijection.
+  double tube_elongation = 1.0;
+  /// Tutte reweighting rounds after a tube start (default 8): edge weights times the geometric
+  /// mean of (area ratio)^reweight_exponent of their faces, kept while the mean |log area ratio|
+  /// falls.
+  int reweight_rounds = 8;
+  /// Exponent of the area ratio in the reweighting (default 1, a full step; measured on the
+  /// LHDL gluteus maximus: mean |log area ratio| 0.62 -> 0.045 in 8 rounds, 0.11 with 0.5).
+  double reweight_exponent = 1.0;
+  /// Reweighting stops once the mean |log area ratio| is below this (default 0.05).
+  double reweight_target = 0.05;
+  /// Sweeps of local untangling applied to a start with flipped triangles (default 50).
+  int untangle_sweeps = 50;
+  /// Largest number of Moebius centring steps (default 60).
+  int mobius_steps = 60;
+  /// Stop centring when the area centroid is this close to the sphere's centre (default 1e-3).
+  double mobius_tolerance = 1e-3;
+  /// Largest number of area-balancing sweeps over all vertices (default 300; 0 disables).
+  int balance_sweeps = 300;
+  /// Stop balancing when a sweep lowers the energy by less than this fraction (default 1e-4).
+  double balance_tolerance = 1e-4;
+
+  // --- relax (thesis) ---
+  /// Relaxation stops when the largest vertex move is below this, unit-sphere units (default 1e-5).
+  double relax_threshold = 1e-5;
+  /// Largest number of relaxation iterations in one relaxation (default 10000, the thesis's cap).
+  int relax_max_iterations = 10000;
+  /// New random tetrahedra tried after a failed collapse check (default 5).
+  int relax_restarts = 5;
+  /// Times the threshold is divided by 10 after a failed orientation check (default 3).
+  int relax_threshold_lowerings = 3;
+  /// Seed of the random tetrahedron rotation (default 1; same seed, same result).
+  unsigned seed = 1;
+
+  /// Throws OptionError naming the first field out of range.
+  void validate() const;
+};
+
+/// Quality of a sphere map against its surface.
+/// Area ratio of triangle t: (spherical area / 4 pi) / (surface area / total surface area).
+struct SphereQuality {
+  long triangles = 0;
+  long flipped = 0;        ///< exact orientation det(v0, v1, v2) < 0 (CGAL exact predicate)
+  long degenerate = 0;     ///< exact det = 0, or spherical area below `degenerate_area`
+  double area_sum = 0.0;   ///< sum of signed spherical areas; 4 pi for a bijection
+  double area_ratio_min = 0.0, area_ratio_max = 0.0;  ///< over triangles of positive surface area
+  double area_log_mean = 0.0;   ///< mean over those triangles of |log(area ratio)|
+  double angle_error_mean_deg = 0.0;  ///< mean |spherical angle - surface angle| per corner, degrees
+  double angle_error_max_deg = 0.0;   ///< largest of those, degrees
+  /// True when flipped = degenerate = 0 and |area_sum - 4 pi| < 1e-6.
+  bool bijective() const;
+};
+
+/// Spherical triangles smaller than this (unit sphere, steradians) count as degenerate: 1e-12 of
+/// the sphere, far below anything a map of a million triangles needs.
+constexpr double degenerate_area = 1e-12 * 4.0 * 3.14159265358979323846;
+
+/// What the map did.
+struct SphereMapReport {
+  std::string method;            ///< "tutte" or "relax"
+  std::string status;            ///< "ok" or "failed"
+  std::string failure;           ///< how it failed, empty when ok
+  SphereQuality quality;
+  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut) or "tube" (cut end to end)
+  double elongation = 0.0;       ///< tutte: (end-to-end edge distance)^2 / area
+  int reweight_rounds = 0;       ///< tutte: reweighting rounds kept after the lift
+  int cut_face = -1;             ///< tutte: the triangle cut out (it covers the north pole)
+  double lift_margin = 0.0;      ///< tutte: power ratio of the lift (> 1 guarantees orientation)
+  int mobius_steps = 0;          ///< tutte: Moebius centring steps taken
+  double mobius_residual = 0.0;  ///< tutte: |area centroid| after centring
+  int iterations = 0;            ///< balancing sweeps (tutte) or relaxation iterations (relax)
+  int rejected_moves = 0;        ///< tutte: vertex moves refused because a triangle would flip
+  int restarts = 0;              ///< relax: new tetrahedra after failed collapse checks
+  int threshold_lowerings = 0;   ///< relax: threshold lowerings after failed orientation checks
+  bool center_moved_inside = false;  ///< relax: Ritter centre was outside and moved in
+  double seconds = 0.0;          ///< wall time of the whole map
+  double solve_seconds = 0.0;    ///< tutte: weights + factorisation + solve
+  nlohmann::json to_json() const;
+};
+
+/// A sphere map: `positions[v]` is vertex v's image on the unit sphere; same triangles.
+struct SphereMap {
+  std::vector<Vec3> positions;
+  SphereMapReport report;
+};
+
+/// Maps `mesh` (closed, oriented outward, genus 0; #V positions in any units) to the unit sphere.
+/// The result's positions have norm 1; mesh.triangles index them unchanged.
+/// Method, guarantees and sources: see the file comment. The tutte method's result is checked
+/// with exact predicates; if it is not a bijection (only possible through floating-point
+/// breakdown on absurd meshes) the report says so with status "failed".
+/// Throws TopologyError when the mesh is not closed genus 0 (see check_sphere_topology),
+/// OptionError for bad options, SolverError when the linear solve fails.
+SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& options = {});
+
+/// Measures a sphere map (`sphere`: #V unit vectors for mesh.positions) against its surface:
+/// exact orientation of every spherical triangle, area ratios and angle errors.
+SphereQuality measure_sphere_map(const TriangleMesh& mesh, const std::vector<Vec3>& sphere);
+
+/// JSON of a quality record (the "quality" object of the report).
+nlohmann::json to_json(const SphereQuality& quality);
+
+}  // namespace fascicle

@@ -1,0 +1,130 @@
+// Point location on a sphere map: vertices, edges, face interiors, round trips, inside tests.
+#include "morph/sphere_locator.h"
+#include "morph/sphere_map.h"
+#include "morph/surface_query.h"
+#include "tests/morph_test_shapes.h"
+
+#include <catch2/catch.hpp>
+
+#include <random>
+
+using namespace fascicle;
+
+namespace {
+
+/// Faces whose spherical triangle holds p (brute force, doubles; for checking only).
+std::vector<int> faces_holding(const std::vector<Vec3>& s, const std::vector<Triangle>& tris, const Vec3& p) {
+  std::vector<int> out;
+  for (std::size_t f = 0; f < tris.size(); ++f) {
+    const Triangle& t = tris[f];
+    if (s[t[0]].cross(s[t[1]]).dot(p) >= -1e-14 && s[t[1]].cross(s[t[2]]).dot(p) >= -1e-14 &&
+        s[t[2]].cross(s[t[0]]).dot(p) >= -1e-14)
+      out.push_back(static_cast<int>(f));
+  }
+  return out;
+}
+
+std::vector<Vec3> random_directions(int n, unsigned seed) {
+  std::mt19937 random(seed);
+  std::normal_distribution<double> gauss;
+  std::vector<Vec3> out;
+  for (int i = 0; i < n; ++i) out.push_back(Vec3(gauss(random), gauss(random), gauss(random)).normalized());
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("locating a vertex gives barycentric 1 at that vertex", "[morph][locate]") {
+  const TriangleMesh mesh = test::icosphere(2);
+  const SphereMap map = map_to_sphere(mesh);
+  const SphereLocator locator(map.positions, mesh.triangles);
+  for (int v = 0; v < static_cast<int>(mesh.positions.size()); ++v) {
+    const SurfacePoint hit = locator.locate(map.positions[v]);
+    const Triangle& t = mesh.triangles[hit.face];
+    int corner = -1;
+    for (int k = 0; k < 3; ++k)
+      if (t[k] == v) corner = k;
+    REQUIRE(corner >= 0);
+    CHECK(hit.barycentric[corner] == Approx(1.0).margin(1e-12));
+    // Consistent: the smallest face index around the vertex.
+    int smallest = static_cast<int>(mesh.triangles.size());
+    for (int f = 0; f < static_cast<int>(mesh.triangles.size()); ++f)
+      for (int k = 0; k < 3; ++k)
+        if (mesh.triangles[f][k] == v) smallest = std::min(smallest, f);
+    CHECK(hit.face == smallest);
+    CHECK((point_on_mesh(mesh, hit) - mesh.positions[v]).norm() < 1e-12);
+  }
+}
+
+TEST_CASE("locating an edge point is consistent and has a zero coordinate", "[morph][locate]") {
+  const TriangleMesh mesh = test::subdivided_cube(3);
+  const SphereMap map = map_to_sphere(mesh);
+  const SphereLocator locator(map.positions, mesh.triangles);
+  int checked = 0;
+  for (const Triangle& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 p = (map.positions[t[k]] + map.positions[t[(k + 1) % 3]]).normalized();
+      const SurfacePoint hit = locator.locate(p);
+      const std::vector<int> holders = faces_holding(map.positions, mesh.triangles, p);
+      REQUIRE_FALSE(holders.empty());
+      // The located face holds p, and the answer is the same from either side.
+      CHECK(std::find(holders.begin(), holders.end(), hit.face) != holders.end());
+      CHECK(locator.locate(p).face == hit.face);
+      CHECK(hit.barycentric.minCoeff() < 1e-9);
+      ++checked;
+    }
+  CHECK(checked == 3 * static_cast<int>(mesh.triangles.size()));
+}
+
+TEST_CASE("locating face interiors agrees with brute force", "[morph][locate]") {
+  const TriangleMesh mesh = test::capsule(1.0, 20.0, 12);
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  const std::vector<Vec3> points = random_directions(500, 7);
+  const std::vector<SurfacePoint> hits = locator.locate_all(points);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::vector<int> holders = faces_holding(map.positions, mesh.triangles, points[i]);
+    REQUIRE(holders.size() >= 1);
+    CHECK(std::find(holders.begin(), holders.end(), hits[i].face) != holders.end());
+    CHECK(hits[i].barycentric.sum() == Approx(1.0));
+    CHECK(hits[i].barycentric.minCoeff() >= 0.0);
+    // The chord hit point lies on the ray through the direction.
+    CHECK(hits[i].position.normalized().dot(points[i]) == Approx(1.0).epsilon(1e-12));
+    CHECK(locator.locate(points[i]).face == hits[i].face);
+  }
+  CHECK_THROWS_AS(locator.locate(Vec3::Zero()), std::invalid_argument);
+}
+
+TEST_CASE("sphere -> muscle -> sphere round trip", "[morph][locate]") {
+  const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  const SurfaceQuery muscle(mesh);
+  for (const Vec3& p : random_directions(300, 11)) {
+    const SurfacePoint on_sphere = locator.locate(p);
+    const Vec3 q = point_on_mesh(mesh, on_sphere);
+    const SurfacePoint back = muscle.closest_point(q);
+    CHECK(back.distance < 1e-9);
+    const Vec3 again = point_on_sphere(map.positions, mesh.triangles, back);
+    CHECK((again - p).norm() < 1e-6);
+  }
+}
+
+TEST_CASE("inside test on a closed mesh", "[morph][locate]") {
+  const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
+  const SurfaceQuery query(mesh);
+  // Points on the bent centre line are inside; points far off are outside; a vertex is on the
+  // boundary.
+  const double bend = 15.0 / (120.0 * M_PI / 180.0);
+  for (double z = 0.5; z < 14.6; z += 0.25) {
+    const Vec3 p(bend - bend * std::cos(z / bend), 0.0, bend * std::sin(z / bend));
+    CHECK(query.inside(p));
+    // 1.2 radii off the centre line, sideways: outside.
+    CHECK_FALSE(query.inside(p + Vec3(0, 1.2, 0)));
+  }
+  CHECK(query.side(Vec3(100, 100, 100)) == Side::outside);
+  CHECK(query.side(Vec3(0, 5, 7)) == Side::outside);
+  CHECK(query.side(mesh.positions[5]) == Side::boundary);
+}
