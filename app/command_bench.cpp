@@ -11,6 +11,7 @@ void add_bench_command(CLI::App& app) {
   fascicle::bench::add_repair_bench(*bench);
   fascicle::bench::add_springs_bench(*bench);
   fascicle::bench::add_sphere_bench(*bench);
+  fascicle::bench::add_gpu_bench(*bench);
 }
 
 }  // namespace fascicle::app

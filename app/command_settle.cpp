@@ -11,6 +11,10 @@
 #include "geometry/thesis_format.h"
 #include "springs/settle.h"
 #include "springs/thesis_settle.h"
+#ifdef FASCICLE_HAVE_SHADERS
+#include "shaders/gl_context.h"
+#include "shaders/gpu_settle.h"
+#endif
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -26,7 +30,10 @@ struct SettleArgs {
   std::string input, output, report, targets;
   std::string solver = "verlet";
   std::string static_method = "momentum";
-  std::string backend = "auto";
+  std::string backend = "auto";  // compute backend: cpu, gl, gl-gs, auto
+  std::string path = "auto";     // CPU/gl data path: auto, structured, general
+  int gl_device = -1;
+  int check_interval = 32;
   std::string damping = "estimate";
   int model = 0;
   double tolerance = 1e-6;
@@ -40,7 +47,11 @@ springs::SettleOptions settle_options(const SettleArgs& args) {
   springs::SettleOptions options;
   options.solver = springs::parse_solver_kind(args.solver);
   options.static_method = springs::parse_static_method(args.static_method);
-  options.backend = springs::parse_backend(args.backend);
+  try {
+    options.backend = springs::parse_backend(args.path);
+  } catch (const OptionError&) {
+    throw OptionError("path: unknown data path '" + args.path + "' (valid: auto, structured, general)");
+  }
   options.tolerance = args.tolerance;
   options.max_iterations = args.max_iterations;
   options.mass = args.mass;
@@ -95,11 +106,68 @@ void run_settle(const SettleArgs& args) {
   const std::optional<springs::LatticeShape> shape = springs::detect_lattice(model, system, wanted);
   if (wanted && !shape && options.backend == springs::Backend::structured)
     throw OptionError("model: " + args.input + " is not a model-" + std::to_string(args.model) +
-                      " lattice as written by fascicle; use --backend general");
+                      " lattice as written by fascicle; use --path general");
   if (!args.targets.empty()) springs::apply_targets(system, springs::read_targets(args.targets), args.targets);
   const springs::LatticeShape* shape_ptr = shape ? &*shape : nullptr;
 
-  const springs::SettleReport report = springs::settle(system, options, shape_ptr);
+  // Compute backend: the CPU solvers or the GPU through OpenGL (shaders/).
+  std::string compute = "cpu", reason;
+  nlohmann::json gpu_info = nullptr;
+  springs::SettleReport report;
+#ifdef FASCICLE_HAVE_SHADERS
+  {
+    const bool large = options.solver == springs::SolverKind::verlet &&
+                       system.positions.size() >= shaders::kAutoGpuMinPoints;
+    const bool hardware = args.backend == "auto" && large && shaders::hardware_gl_device_available();
+    const shaders::BackendChoice choice =
+        shaders::choose_backend(args.backend, options.solver, system.positions.size(), hardware);
+    compute = choice.backend;
+    reason = choice.reason;
+  }
+#else
+  if (args.backend == "gl" || args.backend == "gl-gs")
+    throw Error(ErrorCode::gpu, "backend: " + args.backend + " is not in this build (OpenGL, EGL or GLEW was not "
+                                "found when it was built); use --backend cpu");
+  if (args.backend != "cpu" && args.backend != "auto")
+    throw OptionError("backend: unknown backend '" + args.backend + "' (valid: cpu, gl, gl-gs, auto)");
+  reason = args.backend == "cpu" ? "requested (--backend cpu)" : "auto: this build has no OpenGL backend";
+#endif
+  spdlog::info("backend {}: {}", compute, reason);
+#ifdef FASCICLE_HAVE_SHADERS
+  std::unique_ptr<shaders::GlContext> gl;
+  if (compute != "cpu") {
+    shaders::GlContextOptions context_options;
+    context_options.device = args.gl_device;
+    try {
+      gl = std::make_unique<shaders::GlContext>(context_options);
+    } catch (const shaders::GpuError& e) {
+      if (args.backend != "auto") throw;
+      spdlog::warn("backend auto: no OpenGL context ({}); using the CPU", e.what());
+      compute = "cpu";
+      reason += "; no OpenGL context, fell back to cpu";
+    }
+  }
+#endif
+  if (compute == "cpu") {
+    report = springs::settle(system, options, shape_ptr);
+  } else {
+#ifdef FASCICLE_HAVE_SHADERS
+    const shaders::GlContext& context = *gl;
+    spdlog::info("OpenGL: {} | {} | {}{}", context.renderer(), context.version(), context.platform(),
+                 context.hardware() ? "" : " (software renderer, no GPU)");
+    shaders::GpuSettleOptions gpu_options;
+    gpu_options.backend = shaders::parse_gpu_backend(compute);
+    gpu_options.check_interval = args.check_interval;
+    const shaders::GpuSettleReport gpu = shaders::settle_gpu(context, system, options, gpu_options, shape_ptr);
+    report = gpu;
+    if (gpu.stalled)
+      spdlog::warn("the residual stopped falling at {:.3g} on the GPU (float32 precision); use --backend cpu for "
+                   "a tolerance below it", gpu.residual);
+    gpu_info = {{"renderer", gpu.renderer}, {"gl_version", gpu.gl_version}, {"hardware", gpu.hardware},
+                {"platform", context.platform()}, {"readback_seconds", gpu.readback_seconds},
+                {"gpu_bytes", gpu.gpu_bytes}, {"check_interval", args.check_interval}, {"stalled", gpu.stalled}};
+#endif
+  }
   spdlog::info("settled {} points ({} fixed, {} springs) with {} [{}]: {} iterations, residual {:.3g}{}, {:.3f} s",
                system.positions.size(),
                std::count(system.fixed.begin(), system.fixed.end(), 1), system.springs.size(), report.solver,
@@ -124,6 +192,10 @@ void run_settle(const SettleArgs& args) {
                          : nlohmann::json(nullptr);
     j["solver"] = report.solver;
     j["backend"] = report.backend;
+    j["compute_backend"] = compute;
+    j["backend_reason"] = reason;
+    j["path"] = args.path;
+    j["gpu"] = gpu_info;
     j["tolerance"] = options.tolerance;
     j["max_iterations"] = options.max_iterations;
     j["iterations"] = report.iterations;
@@ -157,7 +229,18 @@ void add_settle_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--static-method", args->static_method, "static solver: momentum, newton or local-global")
       ->capture_default_str();
-  cmd->add_option("--backend", args->backend, "Verlet data path: auto, structured, general")->capture_default_str();
+  cmd->add_option("--backend", args->backend,
+                  "Compute backend: cpu, gl (OpenGL compute shaders), gl-gs (the thesis's geometry-shader method) "
+                  "or auto (a hardware GPU for large Verlet lattices, else cpu)")
+      ->capture_default_str();
+  cmd->add_option("--path", args->path, "Verlet data path: auto, structured (lattice), general (spring list)")
+      ->capture_default_str();
+  cmd->add_option("--gl-device", args->gl_device, "EGL device index for gl/gl-gs (-1: first hardware device, "
+                                                  "else the software renderer)")
+      ->capture_default_str();
+  cmd->add_option("--gpu-check-interval", args->check_interval,
+                  "gl/gl-gs: iterations between residual checks on the GPU")
+      ->capture_default_str();
   cmd->add_option("--model", args->model, "Expect a model-6 or model-26 lattice (default: detect)");
   cmd->add_option("--tolerance", args->tolerance,
                   "Stop at this relative residual (max free-point force / mean spring force); 0 runs "

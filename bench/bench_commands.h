@@ -15,4 +15,8 @@ void add_sphere_bench(CLI::App& bench);  // fascicle bench sphere (bench/bench_s
 /// `fascicle bench springs [--sizes ...] [--json FILE]`: the CPU spring solvers (docs/BENCHMARKS.md).
 void add_springs_bench(CLI::App& bench);
 
+/// `fascicle bench gpu [--sizes ...] [--json FILE]`: GPU spring solvers through OpenGL
+/// (bench_gpu.cpp); an error in a build without OpenGL.
+void add_gpu_bench(CLI::App& bench);
+
 }  // namespace fascicle::bench

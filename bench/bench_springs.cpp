@@ -34,6 +34,7 @@ struct SpringsBenchArgs {
   std::string rest_sizes = "5,10,20";
   std::string trade_sizes = "20,50,100";
   std::string sections = "bandwidth,speed,rest,trade";
+  std::string trade_solvers;    // empty: all
   std::string json;
   std::string plots;            // folder for the template pictures (section "templates")
   double min_seconds = 0.5;     // per speed measurement
@@ -269,6 +270,9 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
       const Lattice lattice = bench_lattice(n, model, 1.1 / (static_cast<double>(n) * n * n));
       const LatticeShape shape = shape_of(lattice);
       for (const TradeSolver& entry : solvers) {
+        if (!args.trade_solvers.empty() &&
+            ("," + args.trade_solvers + ",").find("," + entry.name + ",") == std::string::npos)
+          continue;
         if (entry.options.solver == SolverKind::static_equilibrium &&
             entry.options.static_method == StaticMethod::local_global && n > args.local_global_max_size) {
           std::printf("%5d %6d %-22s   skipped: sparse Cholesky factor too large above %d^3\n", n,
@@ -365,6 +369,9 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--trade-sizes", args->trade_sizes, "Sizes for the speed/accuracy trade")->capture_default_str();
   cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade,templates")->capture_default_str();
   cmd->add_option("--trade-limit", args->trade_limit, "Seconds per trade run")->capture_default_str();
+  cmd->add_option("--trade-solvers", args->trade_solvers,
+                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, "
+                  "static-local-global, static-local-global-plain); default all");
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();

@@ -90,7 +90,7 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
   if (options.backend == Backend::structured)
     throw OptionError(
         "backend: structured needs a lattice whose springs are exactly its model-6/26 neighbours "
-        "with stiffness 1 / rest length; use --backend general or auto");
+        "with stiffness 1 / rest length; use --path general or auto");
   return detail::make_general_verlet(system, options);
 }
 

@@ -10,9 +10,12 @@
 // evaluated from both ends) and its new position is written over its previous one: the forces
 // of a step are a function of the current array, so the result does not depend on traversal
 // order or thread count, exactly as accumulating them into a separate array (the general path)
-// would; fusing the two passes halves the memory traffic. Rows of interior points run through
-// a branch-free loop the compiler vectorises when they hold no fixed point (compiled for AVX-512, AVX2 and baseline x86-64,
-// picked at run time); points on the boundary of the index box take a checked scalar path.
+// would; fusing the two passes halves the memory traffic. Rows of interior points without a
+// fixed point run through a branch-free loop the compiler vectorises (compiled for AVX-512,
+// AVX2 and baseline x86-64, picked at run time); points on the boundary of the index box take
+// a checked scalar path. When every direction's springs share one stiffness and every point
+// the same coefficients, the rows read scalars instead of those arrays (detect_uniform). The
+// same kernels run the momentum static solver (per-step b, gradient restarts).
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"

@@ -1,0 +1,145 @@
+#pragma once
+/// \file gpu_settle.h
+/// The spring settle on the GPU through OpenGL (Zeleny 2011, ch. 3.2 and 6.2.2; after Georgii and
+/// Westermann 2005, "Mass-spring systems on the GPU"). The same damped Verlet iteration as the
+/// CPU solver (springs/settle.h, formula 3.8, same masses, damping and time step from
+/// SettleOptions), in float32:
+///
+/// - `gl`: OpenGL 4.3 compute shaders over shader storage buffers, gather formulation (each
+///   point sums its own springs: no atomics, deterministic). A structured-lattice kernel with
+///   implicit neighbour offsets (model-6 and model-26, shaders/verlet_lattice.comp) and a
+///   compressed-row kernel for any spring list (shaders/verlet_csr.comp); the choice follows
+///   SettleOptions::backend (the CPU data path option) as on the CPU. Positions stay on the GPU;
+///   the residual is a reduction on the GPU every GpuSettleOptions::check_interval iterations
+///   (a few bytes come back); one readback at the end.
+/// - `gl-gs`: the thesis's own method: one GL_POINTS vertex per spring, the vertex shader
+///   computes the force once, a geometry shader emits it at both end points' texels with
+///   opposite signs, additive blending (GL_ONE, GL_ONE) accumulates it in an RGBA32F force
+///   texture; a full-screen pass integrates into three rotating position textures. Readback
+///   with glReadPixels, directly or through a pixel buffer object.
+///
+/// Positions live on the GPU relative to the centre of their bounding box (float32 rounding then
+/// scales with the lattice's extent, not with its distance from the origin: measured, a lattice
+/// 1000 units away agrees with the CPU to 1e-7 of its size instead of 1.6e-4).
+///
+/// Divergence (a NaN/Inf force at a check) throws SolverError like the CPU solver; the energy
+/// bound of the CPU solver is not evaluated on the GPU.
+
+#include "shaders/gl_context.h"
+#include "springs/settle.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fascicle::shaders {
+
+/// Which GPU method.
+enum class GpuBackend {
+  gl,     ///< compute shaders, gather (default)
+  gl_gs,  ///< the thesis's geometry-shader scatter with additive blending
+};
+
+/// "gl" | "gl-gs". Throws OptionError naming the value.
+GpuBackend parse_gpu_backend(const std::string& name);
+/// "gl" | "gl-gs".
+const char* gpu_backend_name(GpuBackend backend);
+
+/// Options of the GPU settle (beside springs::SettleOptions).
+struct GpuSettleOptions {
+  GpuBackend backend = GpuBackend::gl;  ///< method (default gl)
+  int check_interval = 32;  ///< iterations between residual checks on the GPU, >= 1 (default 32)
+  bool pbo_readback = true; ///< gl-gs: read the positions back through a pixel buffer object
+                            ///< (default true: the thesis measured it 25 % faster)
+  int texture_width = 2048; ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
+  int stall_checks = 16;    ///< stop when this many residual checks in a row bring no new minimum
+                            ///< below 0.99 of the best so far: float32 has reached its attainable
+                            ///< accuracy (about 1e-5 relative on template lattices), >= 1
+                            ///< (default 16)
+  /// Throws OptionError naming the bad field.
+  void validate() const;
+};
+
+/// A GPU solver object: buffers and programs built once, then run many times. Needs its context
+/// current on the calling thread.
+class GpuSpringSolver {
+ public:
+  virtual ~GpuSpringSolver() = default;
+  /// Runs `iterations` Verlet steps on the GPU without reading anything back.
+  virtual void run(int iterations) = 0;
+  /// Relative residual at the current positions (largest spring-force magnitude at a free point /
+  /// springs::residual_force_scale, the CPU's measure): one force evaluation and a reduction on
+  /// the GPU. +Inf when a force is NaN or Inf.
+  virtual double residual() = 0;
+  /// Current positions, #N (one readback).
+  virtual std::vector<Vec3> positions() = 0;
+  /// Waits until the GPU has finished every queued command (for timing).
+  virtual void finish() = 0;
+  /// "gl-structured", "gl-structured-uniform", "gl-general" or "gl-gs".
+  virtual std::string backend() const = 0;
+  /// Verlet time step and mean damping coefficient used.
+  virtual double time_step() const = 0;
+  virtual double mean_damping() const = 0;
+  /// Bytes of GPU memory allocated for buffers and textures.
+  virtual std::size_t gpu_bytes() const = 0;
+};
+
+/// Builds a GPU Verlet solver for `system` (validated) on `context`'s device. `shape`, when given
+/// and the springs are exactly its model-6/26 neighbours with stiffness 1 / rest length, lets `gl`
+/// take the structured kernel (SettleOptions::backend = general forces the spring list,
+/// structured requires the lattice). Throws OptionError (bad options, solver other than
+/// verlet, structured without a lattice), GpuError (context, shaders, memory limits).
+std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const springs::SpringSystem& system,
+                                                 const springs::SettleOptions& options,
+                                                 const GpuSettleOptions& gpu_options,
+                                                 const springs::LatticeShape* shape = nullptr);
+
+/// Positions read back from a gl-gs solver either with glReadPixels into client memory
+/// (`pbo` false) or through a pixel buffer object (`pbo` true), with the seconds the readback
+/// took (table 7.3 of the thesis). For other solvers `pbo` is ignored (buffer readback).
+struct Readback {
+  std::vector<Vec3> positions;
+  double seconds = 0.0;
+};
+Readback read_positions(GpuSpringSolver& solver, bool pbo);
+
+/// What settle_gpu did: the CPU report's fields plus the GPU's.
+struct GpuSettleReport : springs::SettleReport {
+  std::string renderer;        ///< GL_RENDERER
+  std::string gl_version;      ///< GL_VERSION
+  bool hardware = false;       ///< false for a software renderer
+  double readback_seconds = 0.0;  ///< final readback
+  std::size_t gpu_bytes = 0;   ///< buffers and textures
+  bool stalled = false;        ///< stopped because the residual no longer fell (stall_checks)
+};
+
+/// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual
+/// on the GPU after each, stops at the tolerance or max_iterations (tolerance 0 runs exactly
+/// max_iterations and checks once at the end) or when the residual stops falling in float32
+/// (GpuSettleOptions::stall_checks; report.stalled), reads the positions back once and writes the
+/// free points into system.positions (fixed points keep their exact input bits). The residual
+/// history holds one value per check. Throws as make_gpu_solver, SolverError on divergence.
+GpuSettleReport settle_gpu(const GlContext& context, springs::SpringSystem& system,
+                           const springs::SettleOptions& options, const GpuSettleOptions& gpu_options,
+                           const springs::LatticeShape* shape = nullptr);
+
+/// The compute backend a settle runs on, and why.
+struct BackendChoice {
+  std::string backend;  ///< "cpu" | "gl" | "gl-gs"
+  std::string reason;   ///< one line for the log and the report
+};
+
+/// Points from which `auto` moves a Verlet settle to a hardware GPU. 50^3: below it the work of
+/// an iteration is too small to hide the launch and synchronisation costs. A choice, not a
+/// measurement: no hardware GPU was available when this was written (docs/BENCHMARKS.md).
+constexpr std::size_t kAutoGpuMinPoints = 125000;
+
+/// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
+/// `solver`: auto takes `gl` only for the Verlet solver, at least `min_gpu_points` points and a
+/// hardware device (`hardware_device`, e.g. hardware_gl_device_available(); only consulted
+/// after the first two tests pass), else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
+/// name or a GPU backend asked for the static solver.
+BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
+                             bool hardware_device, std::size_t min_gpu_points = kAutoGpuMinPoints);
+
+}  // namespace fascicle::shaders
