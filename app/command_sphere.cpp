@@ -96,7 +96,7 @@ void add_sphere_command(CLI::App& app) {
   cmd->add_option("input", args->input, "Input mesh (off, obj, stl, ply, vtk, txt)")->required();
   cmd->add_option("-o,--output", args->output, "Sphere mesh, same connectivity (off, obj, stl, ply, vtk)")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (repair, map quality, attachment centres)");
-  cmd->add_option("--sphere-method", args->method, "tutte: guaranteed bijective (default); relax: the thesis's method")
+  cmd->add_option("--sphere-method", args->method, "tutte: Tutte embedding, checked bijective (default); relax: the thesis's method")
       ->check(CLI::IsMember({"tutte", "relax"}))
       ->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");

@@ -6,24 +6,28 @@
 /// once (the spherical areas add up to 4 pi). Pipeline step 3 of ../shared/docs/METHOD.md.
 ///
 /// Two methods, selectable so they can be compared on the same mesh:
-///  - `tutte` (default, guaranteed bijective): cut one triangle out, embed the remaining disk by
-///    Tutte's barycentric method (Floater 2003, "One-to-one piecewise linear mappings over
-///    triangulations": positive weights + convex boundary give a one-to-one map) with positive
-///    cotangent weights whose conduction along the muscle's long direction is raised (so that a
-///    long thin muscle is embedded as if it were short); lift it to the sphere by
-///    inverse stereographic projection with an origin and scale chosen so that every geodesic
-///    triangle keeps its planar orientation (a power-of-a-point condition, checked); centre the
-///    area by Moebius transformations (the conformal barycentre of the surface-area measure);
-///    long muscles (elongation above `tube_elongation`) instead start from a tube map: cut along
-///    a shortest path between the two ends, Tutte-embed into a convex hexagon, lift by Lambert's
-///    cylindrical equal-area projection (the stereographic start of a 50:1 tube would need
-///    coordinates of e^-100); whichever start is used is checked with exact predicates, locally
-///    untangled if needed, and the other start is tried when it is not a bijection; a tube start
-///    is then re-embedded a few times with weights scaled by the area ratios (each round again a
-///    Tutte embedding with positive weights, so still one-to-one), which lets crowded branches
-///    grow;
-///    then balance areas by a Gauss-Seidel Newton relaxation of sum_t a_t^2 / det_t that rejects
-///    (halves) every step that would make a triangle flip or degenerate.
+///  - `tutte` (default): a Tutte embedding (Floater 2003, "One-to-one piecewise linear mappings
+///    over triangulations": positive weights + convex boundary give a one-to-one planar map)
+///    carried to the sphere, from one of two starts:
+///    * stereographic (round muscles, elongation <= `tube_elongation`): one triangle cut out, the
+///      disk embedded in an equilateral triangle with positive (clamped) cotangent weights, lifted
+///      by inverse stereographic projection with an origin and scale chosen so that every
+///      geodesic triangle keeps its planar orientation (a power-of-a-point condition, checked),
+///      then Moebius-centred (conformal barycentre of the surface-area measure). Bijective by
+///      construction, but a long shape crowds towards its ends by exp(-2 pi length/circumference),
+///      beyond double precision for a 50:1 tube;
+///    * tube (long muscles): the mesh cut along a shortest path between its two far ends, the disk
+///      embedded in a convex hexagon whose sides are the cut's two banks, the hexagon folded onto
+///      a capped prism (each piece affinely) and projected centrally; Lambert's cylindrical
+///      equal-area projection is the second fold. Orientation is kept exactly inside each piece;
+///      triangles across a fold or near the poles may flip.
+///    Every start is checked with exact predicates, locally untangled (smoothing, then Tutte
+///    re-embedding of bad clusters in a gnomonic chart) and the next start is tried while bad
+///    triangles remain. A tube start is then re-embedded with edge weights scaled by the area
+///    ratios (each round again a Tutte embedding), and the areas are balanced by a Gauss-Seidel
+///    Newton relaxation of sum_t a_t^2 / det_t that refuses (halves) every step that would make a
+///    triangle flip or degenerate. The report states whether the result is a bijection; on the
+///    corpus 45 of 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map").
 ///  - `relax`: the thesis's method (Zeleny 2011, ch. 6.3, after Alexa 2000): Ritter bounding
 ///    sphere, centre moved inside by an exact inside test, projection by normalisation, random
 ///    tetrahedron anchors, centroid relaxation with renormalisation, collapse check, orientation
@@ -40,7 +44,7 @@ namespace fascicle {
 
 /// Sphere-map method.
 enum class SphereMethod {
-  tutte,  ///< Tutte embedding + stereographic lift + flip-free relaxation (default)
+  tutte,  ///< Tutte embedding (stereographic or tube start) + flip-free relaxation (default)
   relax,  ///< the thesis's normalise-and-relax method (may fail)
 };
 
@@ -151,9 +155,9 @@ struct SphereMap {
 
 /// Maps `mesh` (closed, oriented outward, genus 0; #V positions in any units) to the unit sphere.
 /// The result's positions have norm 1; mesh.triangles index them unchanged.
-/// Method, guarantees and sources: see the file comment. The tutte method's result is checked
-/// with exact predicates; if it is not a bijection (only possible through floating-point
-/// breakdown on absurd meshes) the report says so with status "failed".
+/// Method and sources: see the file comment. The result is checked with exact predicates; when it
+/// is not a bijection the report says so (status "failed", `failure` says how many triangles are
+/// flipped or degenerate) and the positions are still returned for inspection.
 /// Throws TopologyError when the mesh is not closed genus 0 (see check_sphere_topology),
 /// OptionError for bad options, SolverError when the linear solve fails.
 SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& options = {});

@@ -137,6 +137,8 @@ class RepairPipeline {
     if (!CGAL::is_closed(mesh)) throw NeedsWrap{"some holes could not be filled"};
 
     remove_self_intersections(mesh);
+    // Cutting out intersecting regions can split off pieces (a pinched fold, a touching shell).
+    keep_largest_component(mesh);
 
     TriangleMesh out = from_cgal(mesh);
     step("orient_outward", [&] {
