@@ -8,7 +8,7 @@ packages=(
   build-essential cmake make pkg-config ccache
   libcgal-dev libgmp-dev libmpfr-dev
   libeigen3-dev libboost-dev libtbb-dev
-  libglew-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
+  libglew-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   catch2 libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
 )
 
