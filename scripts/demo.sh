@@ -8,6 +8,7 @@ mkdir -p "$out"
 
 "$exe" sample -o "$out/sample.off" --log "$out/sample-defects.json"
 "$exe" repair "$out/sample.off" -o "$out/sample-repaired.off" --report "$out/repair-report.json"
+"$exe" sphere "$out/sample.off" -o "$out/sample-sphere.vtk" --report "$out/sphere-report.json"
 if "$exe" --help 2>/dev/null | grep -q "^  decompose"; then
   "$exe" decompose "$out/sample.off" -o "$out/fibres.vtk" --report "$out/decompose-report.json"
 fi
