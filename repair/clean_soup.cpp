@@ -117,11 +117,11 @@ TriangleMesh clean_soup(const PolygonSoup& soup, const std::vector<int>& represe
       }
       idx = new_index[idx];
     }
-  long referenced_reps = 0;
-  std::vector<char> is_rep(soup.points.size(), 0);
+  // Every weld representative that no remaining face uses is an unreferenced point.
+  long representatives = 0;
   for (std::size_t i = 0; i < representative.size(); ++i)
-    if (representative[i] == static_cast<int>(i)) is_rep[i] = 1, ++referenced_reps;
-  local.unreferenced_removed = referenced_reps - static_cast<long>(mesh.positions.size());
+    if (representative[i] == static_cast<int>(i)) ++representatives;
+  local.unreferenced_removed = representatives - static_cast<long>(mesh.positions.size());
   if (counts) *counts = local;
   return mesh;
 }
