@@ -265,24 +265,17 @@ class ComputeVerlet final : public GpuSpringSolver {
                   static_cast<float>(coefficients_.b[0]));
     } else {
       program_ = std::make_unique<Program>(compile_program({"verlet_csr.comp"}));
-      std::vector<GLint> row(n_ + 1, 0);
-      for (const Spring& s : system.springs) {
-        ++row[s.a + 1];
-        ++row[s.b + 1];
-      }
-      for (long i = 0; i < n_; ++i) row[i + 1] += row[i];
+      const springs::detail::SpringRows csr = springs::detail::spring_rows(system);
+      static_assert(sizeof(GLint) == sizeof(int), "GLint rows");
+      const std::vector<int>& row = csr.row;
       struct Slot {
         GLint q;
         float k, rest, pad;
       };
       static_assert(sizeof(Slot) == 16, "std430 layout of Slot");
-      std::vector<Slot> slots(row[n_]);
-      std::vector<GLint> fill(row.begin(), row.end() - 1);
-      for (const Spring& s : system.springs)
-        for (int end = 0; end < 2; ++end) {
-          const int p = end ? s.b : s.a, q = end ? s.a : s.b;
-          slots[fill[p]++] = Slot{q, static_cast<float>(s.stiffness), static_cast<float>(s.rest), 0.0f};
-        }
+      std::vector<Slot> slots(csr.neighbour.size());
+      for (std::size_t i = 0; i < slots.size(); ++i)
+        slots[i] = Slot{csr.neighbour[i], static_cast<float>(csr.stiffness[i]), static_cast<float>(csr.rest[i]), 0.0f};
       storage(rows_, row.size() * sizeof(GLint), row.data(), "spring rows", bytes_);
       storage(stiffness_, slots.size() * sizeof(Slot), slots.data(), "springs", bytes_);
       storage(coef_, ab.size() * sizeof(float), ab.data(), "Verlet coefficients", bytes_);

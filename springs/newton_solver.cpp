@@ -42,27 +42,14 @@ class NewtonSolver final : public SpringSolver {
     n_ = static_cast<int>(system.positions.size());
     fixed_ = system.fixed;
     check_anchored(system);
-    row_.assign(n_ + 1, 0);
-    for (const Spring& s : system.springs) {
-      ++row_[s.a + 1];
-      ++row_[s.b + 1];
-    }
-    for (int i = 0; i < n_; ++i) row_[i + 1] += row_[i];
-    const std::size_t entries = row_[n_];
-    neighbour_.resize(entries);
-    stiffness_.resize(entries);
-    rest_.resize(entries);
+    SpringRows rows = spring_rows(system);
+    row_ = std::move(rows.row);
+    neighbour_ = std::move(rows.neighbour);
+    stiffness_ = std::move(rows.stiffness);
+    rest_ = std::move(rows.rest);
+    const std::size_t entries = neighbour_.size();
     direction_.resize(3 * entries);
     transverse_.resize(entries);
-    std::vector<int> fill(row_.begin(), row_.end() - 1);
-    for (const Spring& s : system.springs)
-      for (int end = 0; end < 2; ++end) {
-        const int p = end ? s.b : s.a, q = end ? s.a : s.b;
-        const int slot = fill[p]++;
-        neighbour_[slot] = q;
-        stiffness_[slot] = s.stiffness;
-        rest_[slot] = s.rest;
-      }
     x_.resize(3 * static_cast<std::size_t>(n_));
     for (int i = 0; i < n_; ++i)
       for (int c = 0; c < 3; ++c) x_[3 * i + c] = system.positions[i][c];

@@ -17,6 +17,17 @@ struct VerletCoefficients {
   double min_mass = 0.0, max_point_stiffness = 0.0;  ///< for error messages
 };
 
+/// The springs in compressed rows: the springs of point p are slots row[p] .. row[p+1]-1, each
+/// holding the other end, the stiffness and the rest length (every spring appears at both ends).
+struct SpringRows {
+  std::vector<int> row;        ///< #points + 1 offsets
+  std::vector<int> neighbour;  ///< 2 #springs
+  std::vector<double> stiffness, rest;
+};
+
+/// Builds the compressed rows of `system` (used by the general Verlet, Newton and GPU paths).
+SpringRows spring_rows(const SpringSystem& system);
+
 /// Masses, damping and time step from the options (see SettleOptions).
 VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleOptions& options);
 

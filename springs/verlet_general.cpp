@@ -12,6 +12,31 @@
 #include <cmath>
 
 namespace fascicle::springs::detail {
+
+SpringRows spring_rows(const SpringSystem& system) {
+  const int n = static_cast<int>(system.positions.size());
+  SpringRows rows;
+  rows.row.assign(n + 1, 0);
+  for (const Spring& s : system.springs) {
+    ++rows.row[s.a + 1];
+    ++rows.row[s.b + 1];
+  }
+  for (int i = 0; i < n; ++i) rows.row[i + 1] += rows.row[i];
+  const std::size_t entries = static_cast<std::size_t>(rows.row[n]);
+  rows.neighbour.resize(entries);
+  rows.stiffness.resize(entries);
+  rows.rest.resize(entries);
+  std::vector<int> fill(rows.row.begin(), rows.row.end() - 1);
+  for (const Spring& s : system.springs)
+    for (int end = 0; end < 2; ++end) {
+      const int p = end ? s.b : s.a, q = end ? s.a : s.b;
+      const int slot = fill[p]++;
+      rows.neighbour[slot] = q;
+      rows.stiffness[slot] = s.stiffness;
+      rows.rest[slot] = s.rest;
+    }
+  return rows;
+}
 namespace {
 
 constexpr int kBlock = 4096;  // points per parallel block (fixed: deterministic reductions)
@@ -24,25 +49,11 @@ class GeneralVerlet final : public SpringSolver {
         momentum_(momentum) {
     n_ = static_cast<int>(system.positions.size());
     fixed_ = system.fixed;
-    row_.assign(n_ + 1, 0);
-    for (const Spring& s : system.springs) {
-      ++row_[s.a + 1];
-      ++row_[s.b + 1];
-    }
-    for (int i = 0; i < n_; ++i) row_[i + 1] += row_[i];
-    neighbour_.resize(row_[n_]);
-    stiffness_.resize(row_[n_]);
-    rest_.resize(row_[n_]);
-    std::vector<int> fill(row_.begin(), row_.end() - 1);
-    for (const Spring& s : system.springs) {
-      for (int end = 0; end < 2; ++end) {
-        const int p = end ? s.b : s.a, q = end ? s.a : s.b;
-        const int slot = fill[p]++;
-        neighbour_[slot] = q;
-        stiffness_[slot] = s.stiffness;
-        rest_[slot] = s.rest;
-      }
-    }
+    SpringRows rows = spring_rows(system);
+    row_ = std::move(rows.row);
+    neighbour_ = std::move(rows.neighbour);
+    stiffness_ = std::move(rows.stiffness);
+    rest_ = std::move(rows.rest);
     x_.resize(3 * static_cast<std::size_t>(n_));
     for (int i = 0; i < n_; ++i)
       for (int c = 0; c < 3; ++c) x_[3 * i + c] = system.positions[i][c];
