@@ -1,0 +1,65 @@
+#include "fibres/fibre_grid.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace fascicle {
+
+namespace {
+
+const CellArray* find_array(const Polylines& fibres, const char* name) {
+  for (const CellArray& array : fibres.cell_data) {
+    if (array.name == name && array.values.size() == fibres.lines.size()) return &array;
+  }
+  return nullptr;
+}
+
+bool as_index(double value, int& index) {
+  if (!std::isfinite(value) || value < 0.0 || value > 1e8 || std::floor(value) != value) return false;
+  index = static_cast<int>(value);
+  return true;
+}
+
+}  // namespace
+
+FibreGrid fibre_grid(const Polylines& fibres) {
+  const CellArray* r_array = find_array(fibres, fibre_r_array);
+  const CellArray* s_array = find_array(fibres, fibre_s_array);
+  if (r_array == nullptr || s_array == nullptr || fibres.lines.empty()) return {};
+  const size_t points = fibres.lines.front().size();
+  if (points < 2) return {};
+  int nr = 0, ns = 0;
+  std::vector<int> r(fibres.lines.size()), s(fibres.lines.size());
+  for (size_t line = 0; line < fibres.lines.size(); ++line) {
+    if (fibres.lines[line].size() != points) return {};
+    if (!as_index(r_array->values[line], r[line]) || !as_index(s_array->values[line], s[line])) return {};
+    nr = std::max(nr, r[line] + 1);
+    ns = std::max(ns, s[line] + 1);
+  }
+  // A sparse index range (a few fibres with huge indices) is not a lattice worth a dense table.
+  if (static_cast<double>(nr) * ns > 4.0 * static_cast<double>(fibres.lines.size()) + 16.0) return {};
+  FibreGrid grid;
+  grid.nr = nr;
+  grid.ns = ns;
+  grid.points = static_cast<int>(points);
+  grid.line_of.assign(static_cast<size_t>(nr) * static_cast<size_t>(ns), -1);
+  for (size_t line = 0; line < fibres.lines.size(); ++line) {
+    int& slot = grid.line_of[static_cast<size_t>(r[line] + nr * s[line])];
+    if (slot != -1) return {};
+    slot = static_cast<int>(line);
+  }
+  return grid;
+}
+
+Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector<int>& r, const std::vector<int>& s) {
+  if (r.size() != lines.size() || s.size() != lines.size()) {
+    throw std::invalid_argument("lattice_fibres: index arrays do not match the fibre count");
+  }
+  Polylines fibres;
+  fibres.lines = std::move(lines);
+  fibres.cell_data.push_back({fibre_r_array, std::vector<double>(r.begin(), r.end())});
+  fibres.cell_data.push_back({fibre_s_array, std::vector<double>(s.begin(), s.end())});
+  return fibres;
+}
+
+}  // namespace fascicle

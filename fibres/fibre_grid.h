@@ -1,0 +1,41 @@
+#pragma once
+/// \file fibre_grid.h
+/// Fibres as a lattice: a decomposition's fibres are the lattice lines (r, s) of a template
+/// lattice, all with the same number of points, and neighbouring fibres bound hexahedral cells.
+/// In files the lattice indices travel as the per-fibre cell data arrays `fibre_r` and `fibre_s`
+/// (geometry/mesh.h, Polylines::cell_data); fibres from other tools have none and are then
+/// checked without cells.
+#include "geometry/mesh.h"
+#include <vector>
+
+namespace fascicle {
+
+/// Name of the per-fibre array holding a fibre's first lattice index.
+inline constexpr const char* fibre_r_array = "fibre_r";
+/// Name of the per-fibre array holding a fibre's second lattice index.
+inline constexpr const char* fibre_s_array = "fibre_s";
+
+/// Lattice structure of a set of fibres.
+struct FibreGrid {
+  int nr = 0, ns = 0;          ///< index ranges r in [0, nr), s in [0, ns); 0 when not a lattice
+  int points = 0;              ///< points per fibre (the same for every fibre)
+  std::vector<int> line_of;    ///< nr * ns entries: the line at (r, s) is line_of[r + nr s], or -1
+  /// True when the fibres form a lattice (nr, ns > 0).
+  bool is_lattice() const { return nr > 0 && ns > 0; }
+  /// The line index at (r, s), or -1 when out of range or absent.
+  int at(int r, int s) const {
+    return (r < 0 || s < 0 || r >= nr || s >= ns) ? -1 : line_of[static_cast<size_t>(r + nr * s)];
+  }
+};
+
+/// The lattice structure of `fibres`: present when both arrays `fibre_r` and `fibre_s` exist,
+/// hold non-negative integers, no (r, s) pair repeats and every line has the same number of
+/// points (>= 2). Otherwise an empty grid (nr = ns = 0), which is not an error: such fibres are
+/// checked without cells.
+FibreGrid fibre_grid(const Polylines& fibres);
+
+/// Fibres with their lattice indices as cell data arrays `fibre_r`, `fibre_s`.
+/// `lines`, `r` and `s` have the same size (throws std::invalid_argument otherwise).
+Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector<int>& r, const std::vector<int>& s);
+
+}  // namespace fascicle
