@@ -1,0 +1,150 @@
+#pragma once
+/// \file fibre_check.h
+/// The fibre quality check (issue 6, "Check"): figures that say whether a set of fibres is a
+/// faithful decomposition of a muscle, computed from the fibres and the muscle surface alone, so
+/// fibres from any tool (this program's decomposition, a slicing method, a harmonic-field
+/// method) are checked the same way.
+///
+/// Criteria and their default thresholds (CheckOptions):
+/// - inside: every interior fibre point strictly inside the muscle by the exact test (CGAL
+///   Side_of_triangle_mesh through morph/surface_query.h); end points may also lie on the surface
+///   within `end_tolerance`. Pass when inside_fraction >= min_inside_fraction (1.0).
+/// - inverted cells (lattice fibres only, see fibres/fibre_grid.h): each hexahedral cell between
+///   fibres (r,s), (r+1,s), (r,s+1), (r+1,s+1) and points k, k+1 is split into six tetrahedra
+///   around its diagonal (r,s,k)-(r+1,s+1,k+1); a cell is inverted when one of its tetrahedra has
+///   the sign opposite to the lattice's reference orientation (the sign of the sum of all
+///   tetrahedra volumes) or a (numerically) zero volume. Pass when inverted_cells <=
+///   max_inverted_cells (0). Folded lattices are exactly the ones whose fibres cross.
+/// - coverage: samples uniform in the muscle volume; distance from each to the nearest fibre
+///   segment, divided by the ideal spacing sqrt(V / (F L)) (V muscle volume, F fibre count, L mean
+///   fibre length). Pass when the 95th percentile <= max_coverage_p95 (2.0).
+/// - attachment: distance of each fibre's first point to the nearest origin-area point and of
+///   its last point to the nearest insertion-area point, divided by the muscle length (extent of
+///   the muscle's vertices along their principal axis, as morph/attachments.cpp defines the
+///   automatic areas). Pass when the largest of both is <= max_attachment (0.02).
+/// Length spread and the largest turning angle are reported, not judged.
+
+#include "geometry/mesh.h"
+#include "morph/attachments.h"
+#include "morph/surface_query.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace fascicle {
+
+/// Options of the fibre check: sampling, tolerances and pass thresholds.
+struct CheckOptions {
+  /// Uniform volume samples for the coverage figures (default 20000).
+  int coverage_samples = 20000;
+  /// Seed of the sample generator: the same seed gives the same report (default 1).
+  std::uint64_t seed = 1;
+  /// Fibre end points (first and last point) count as inside when they are within this fraction
+  /// of the muscle's bounding-box diagonal of the surface, on either side (default 1e-4):
+  /// fibres of a decomposition end on the attachment areas, i.e. on the surface.
+  double end_tolerance = 1e-4;
+  /// Pass threshold: smallest acceptable inside_fraction (default 1.0: every point inside).
+  double min_inside_fraction = 1.0;
+  /// Pass threshold: largest acceptable number of inverted lattice cells (default 0).
+  long max_inverted_cells = 0;
+  /// Pass threshold: largest acceptable coverage 95th percentile, in ideal spacings (default 2.0).
+  double max_coverage_p95 = 2.0;
+  /// Pass threshold: largest acceptable attachment distance, as a fraction of the muscle length
+  /// (default 0.02).
+  double max_attachment = 0.02;
+  /// How many outside points the report lists (default 10); the count covers all of them.
+  int outside_listed = 10;
+
+  /// Throws OptionError naming the first field out of range (coverage_samples < 1,
+  /// end_tolerance < 0, min_inside_fraction outside [0, 1], max_inverted_cells < 0,
+  /// max_coverage_p95 or max_attachment <= 0 or not finite, outside_listed < 0).
+  void validate() const;
+};
+
+/// A fibre point that failed the inside test.
+struct OutsidePoint {
+  int fibre = 0;                 ///< line index in the Polylines
+  int point = 0;                 ///< point index along the fibre
+  Vec3 position = Vec3::Zero();  ///< mesh units
+  double distance = 0.0;         ///< distance to the surface, mesh units
+};
+
+/// Coverage figures: sample-to-nearest-fibre distances in ideal spacings.
+struct CoverageFigures {
+  double mean = 0.0;           ///< mean distance / ideal_spacing
+  double p95 = 0.0;            ///< 95th percentile distance / ideal_spacing
+  double max = 0.0;            ///< largest distance / ideal_spacing
+  double ideal_spacing = 0.0;  ///< sqrt(V / (F L)), mesh units
+  double volume = 0.0;         ///< muscle volume V, mesh units cubed
+  int samples = 0;             ///< samples drawn inside the muscle
+};
+
+/// Attachment figures: fibre end to area distances as fractions of the muscle length.
+struct AttachmentFigures {
+  double origin_max = 0.0, origin_mean = 0.0;        ///< first points to the origin area
+  double insertion_max = 0.0, insertion_mean = 0.0;  ///< last points to the insertion area
+  double muscle_length = 0.0;                        ///< principal-axis extent, mesh units
+};
+
+/// Fibre length figures (polyline lengths, mesh units; cv = standard deviation / mean).
+struct LengthFigures {
+  double mean = 0.0, min = 0.0, max = 0.0, cv = 0.0;
+};
+
+/// Result of check_fibres. `pass` is true when no criterion failed; `failed` names the failed
+/// ones ("inside", "inverted_cells", "coverage", "attachment").
+struct CheckReport {
+  long fibres = 0;                        ///< fibre count F
+  long points = 0;                        ///< fibre points in all
+  long inside_points = 0;                 ///< points that passed the inside test
+  double inside_fraction = 0.0;           ///< inside_points / points
+  long outside = 0;                       ///< points - inside_points
+  std::vector<OutsidePoint> outside_examples;  ///< the first options.outside_listed of them
+  bool lattice = false;                   ///< the fibres carry a lattice (fibre_r, fibre_s)
+  int lattice_nr = 0, lattice_ns = 0;     ///< lattice index ranges (0 when not a lattice)
+  long cells = 0;                         ///< lattice cells checked (0 when not a lattice)
+  long inverted_cells = 0;                ///< cells with an inverted or flat tetrahedron
+  CoverageFigures coverage;
+  AttachmentFigures attachment;
+  LengthFigures length;
+  double max_turning_angle_deg = 0.0;     ///< largest angle between consecutive segments
+  CheckOptions thresholds;                ///< the options the check ran with
+  bool pass = false;
+  std::vector<std::string> failed;        ///< names of the failed criteria, in the order above
+  double seconds = 0.0;                   ///< wall time of the check
+
+  /// The report as JSON: every field above (thresholds under "thresholds").
+  nlohmann::json to_json() const;
+  /// A human-readable table, one criterion per line with its value, threshold and verdict.
+  std::string to_table() const;
+};
+
+/// Muscle length used to scale attachment distances: the extent of the vertices along their
+/// principal axis (largest eigenvector of their covariance), mesh units. 0 for an empty mesh.
+double muscle_length(const TriangleMesh& muscle);
+
+/// Checks `fibres` against the closed muscle surface `muscle` and its attachment `areas`.
+/// - fibres: polylines in mesh units, each ordered from origin to insertion; with the cell
+///   arrays fibre_r / fibre_s when they come from a lattice (then cells are checked).
+/// - muscle: closed, outward-oriented triangle mesh (repair it first: repair/repair.h).
+/// - areas: origin and insertion areas on `muscle` (morph/attachments.h).
+/// Method: see the file comment. The inside test classifies a uniform grid over the muscle's
+/// box once (cells touched by no triangle's box share one side, found by one exact test per
+/// connected region) and runs the exact test only in cells near the surface; nearest-fibre
+/// distances use a uniform grid over the segments (no brute force).
+/// Throws OptionError for bad options, InputError(file_empty) when there is no fibre or a fibre
+/// has fewer than 2 points or a non-finite point, TopologyError when the muscle has no triangles,
+/// is not an oriented 2-manifold or has non-positive volume, InputError(landmarks) when an area
+/// has no point.
+CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const Attachments& areas,
+                         const CheckOptions& options = {});
+
+/// The same with a SurfaceQuery already built on `muscle` (saves building its trees again when
+/// the caller has one, as the decomposition does). `query` must have been built on `muscle`.
+CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const SurfaceQuery& query,
+                         const Attachments& areas, const CheckOptions& options = {});
+
+}  // namespace fascicle
