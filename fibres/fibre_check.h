@@ -135,10 +135,10 @@ double muscle_length(const TriangleMesh& muscle);
 /// box once (cells touched by no triangle's box share one side, found by one exact test per
 /// connected region) and runs the exact test only in cells near the surface; nearest-fibre
 /// distances use a uniform grid over the segments (no brute force).
-/// Throws OptionError for bad options, InputError(file_empty) when there is no fibre or a fibre
-/// has fewer than 2 points or a non-finite point, TopologyError when the muscle has no triangles,
-/// is not an oriented 2-manifold or has non-positive volume, InputError(landmarks) when an area
-/// has no point.
+/// Throws OptionError for bad options; InputError(file_empty) when there is no fibre,
+/// InputError(malformed) when a fibre has fewer than 2 points or a point that is not finite;
+/// TopologyError when the muscle has no triangles, is not an oriented 2-manifold or has a
+/// non-positive volume; InputError(landmarks) when an area has no point.
 CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const Attachments& areas,
                          const CheckOptions& options = {});
 

@@ -22,6 +22,7 @@ const char* error_name(ErrorCode code) {
     case ErrorCode::landmarks: return "landmarks";
     case ErrorCode::time_limit: return "time_limit";
     case ErrorCode::invalid_option: return "invalid_option";
+    case ErrorCode::quality: return "quality";
   }
   return "unknown";
 }

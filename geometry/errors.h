@@ -29,6 +29,7 @@ enum class ErrorCode : int {
   landmarks = 16,          ///< attachment landmarks are unusable (far from surface, equal areas)
   time_limit = 17,         ///< a stage ran past its time limit
   invalid_option = 18,     ///< an option value is out of its valid range
+  quality = 19,            ///< fibres fail the quality check (`fascicle check --strict`)
 };
 
 /// Exit code of the program for an error kind.

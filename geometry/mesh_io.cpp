@@ -138,34 +138,6 @@ PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& option
   return soup;
 }
 
-Polylines read_polylines(const std::string& path, const ReadOptions& options) {
-  const std::string ext = lower_extension(path);
-  if (ext != "vtk" && ext != "obj")
-    throw InputError(ErrorCode::unknown_format,
-                     path + ": unknown polyline format '" + ext + "' (expected .vtk or .obj)");
-  const std::string data = detail::load_file(path, options);
-  std::vector<Vec3> points;
-  std::vector<std::vector<int>> index_lines;
-  Polylines result;
-  if (ext == "vtk") {
-    detail::VtkPolyData vtk = detail::read_vtk(path, data, options);
-    points = std::move(vtk.points);
-    index_lines = std::move(vtk.lines);
-    result.cell_data = std::move(vtk.line_cell_data);
-  } else {
-    detail::ObjData obj = detail::read_obj_data(path, data, options);
-    points = std::move(obj.points);
-    index_lines = std::move(obj.lines);
-  }
-  if (index_lines.empty()) throw InputError(ErrorCode::file_empty, path + ": holds no polylines");
-  result.lines.reserve(index_lines.size());
-  for (const auto& indices : index_lines) {
-    std::vector<Vec3> line;
-    line.reserve(indices.size());
-    for (int i : indices) line.push_back(points[static_cast<std::size_t>(i)]);
-    result.lines.push_back(std::move(line));
-  }
-  return result;
-}
+// read_polylines: read_polylines.cpp.
 
 }  // namespace fascicle

@@ -15,7 +15,7 @@
 /// corpus file CGAL reads.
 ///
 /// Writers: OFF, OBJ, PLY (binary little endian, double), STL (binary, float32 by the format's
-/// definition), legacy VTK polydata (ASCII). Text coordinates use max_digits10 so a file means
+/// definition), legacy VTK polydata (ASCII); polylines also as VTK XML PolyData (.vtp) and CSV. Text coordinates use max_digits10 so a file means
 /// exactly what was computed. Every output is written atomically (atomic_file.h).
 
 #include "geometry/mesh.h"
@@ -57,9 +57,20 @@ MeshFormat mesh_format_from_path(const std::string& path);
 /// OBJ: an index must refer to a vertex defined above the face (as the format requires).
 PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& options = {});
 
-/// Reads polylines from `path`: .vtk (legacy polydata LINES; scalar CELL_DATA arrays of the
-/// lines become `cell_data`) or .obj (`l` elements; no cell data), the formats write_polylines
-/// writes. Throws InputError as read_polygon_soup (file_empty when the file holds no line).
+/// Reads polylines from `path`, the formats write_polylines writes:
+/// - .vtk: legacy polydata LINES; scalar CELL_DATA arrays of the lines become `cell_data`;
+/// - .vtp: VTK XML PolyData with format="ascii" DataArrays: one <Piece>, <Points> (3 components,
+///   any float or integer type), <Lines> `connectivity` + `offsets`, and the one-component
+///   <CellData> arrays (their lines' slice) as `cell_data`; binary or appended arrays are
+///   refused (unknown_format), other arrays skipped;
+/// - .obj: `l` elements; no cell data;
+/// - .csv: header exactly `fibre,r,s,point,x,y,z`, then one row per point (fibre and point
+///   non-negative integers, the rest numbers); rows are grouped by `fibre` (lines in increasing
+///   fibre number, gaps allowed), each line's points ordered by `point` (gaps allowed, a repeated
+///   point is an error); r and s come back as the cell arrays `fibre_r` and `fibre_s` (they must
+///   be the same on every row of a fibre).
+/// Throws InputError as read_polygon_soup (file_empty when the file holds no line), with the
+/// line number for text errors.
 Polylines read_polylines(const std::string& path, const ReadOptions& options = {});
 
 /// Writes a triangle mesh to `path`, format by extension (off, obj, stl, ply, vtk), atomically.
@@ -73,10 +84,16 @@ Polylines read_polylines(const std::string& path, const ReadOptions& options = {
 /// index is out of range or a position is not finite.
 void write_triangle_mesh(const std::string& path, const TriangleMesh& mesh);
 
-/// Writes polylines to `path`, atomically: .vtk (legacy ASCII POLYDATA: POINTS double, LINES,
-/// and CELL_DATA with one `SCALARS <name> double 1` / `LOOKUP_TABLE default` array per
-/// cell_data entry; blanks in names become '_') or .obj (`v` and `l` elements; cell data is not
-/// written). Throws InputError(unknown_format) for another extension before anything is
+/// Writes polylines to `path`, atomically, all coordinates with max_digits10 (exact round trip):
+/// - .vtk: legacy ASCII POLYDATA: POINTS double, LINES, and CELL_DATA with one
+///   `SCALARS <name> double 1` / `LOOKUP_TABLE default` array per cell_data entry (blanks in
+///   names become '_');
+/// - .vtp: VTK XML PolyData, ASCII: Float64 Points, Int64 `connectivity`/`offsets` Lines, one
+///   Float64 CellData array per cell_data entry;
+/// - .obj: `v` and `l` elements; cell data is not written;
+/// - .csv: header `fibre,r,s,point,x,y,z`, one row per point, fibres in order, points from the
+///   first (origin) to the last; r and s are the fibre's `fibre_r` / `fibre_s` values when both
+///   arrays exist, else r = the fibre's index and s = 0; other cell arrays are not written. Throws InputError(unknown_format) for another extension before anything is
 /// written, IoError when the file cannot be written, Error(internal) when a cell array does not
 /// hold one value per line or a value is not finite.
 void write_polylines(const std::string& path, const Polylines& lines);

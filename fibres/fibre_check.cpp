@@ -1,0 +1,629 @@
+// The fibre quality check. Two spatial grids keep it fast without giving up exactness:
+// - InsideGrid classifies a uniform grid over the muscle's box once: cells whose closed box
+//   meets no triangle's (padded) box form regions that do not touch the surface, so each
+//   face-connected region has one side, found with one exact test at a cell centre. Points in
+//   such cells need no further test; only points in cells near the surface go to the exact test
+//   (CGAL Side_of_triangle_mesh through SurfaceQuery).
+// - SegmentGrid buckets the fibre segments by the cells their boxes overlap; a nearest-segment
+//   query searches rings of cells around the query until no unvisited cell can hold anything
+//   closer than the best distance found.
+#include "fibres/fibre_check.h"
+
+#include "fibres/fibre_grid.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_stats.h"
+
+#include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <random>
+
+namespace fascicle {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// Integer cell coordinates of a uniform grid over a box.
+struct UniformGrid {
+  Vec3 origin = Vec3::Zero();
+  double h = 1.0;
+  std::array<int, 3> n{1, 1, 1};
+
+  /// A grid over `box` (padded by `pad` on every side) with about `target` cubic cells.
+  static UniformGrid over(const BoundingBox& box, double pad, double target) {
+    UniformGrid g;
+    g.origin = box.min - Vec3::Constant(pad);
+    const Vec3 extent = (box.max - box.min) + Vec3::Constant(2 * pad);
+    g.h = std::cbrt(extent.prod() / std::max(1.0, target));
+    // A flat box (zero extent on an axis) gives h = 0: fall back to the largest extent.
+    if (!(g.h > 0.0) || !std::isfinite(g.h)) g.h = std::max(extent.maxCoeff() / std::cbrt(target), 1e-300);
+    for (int a = 0; a < 3; ++a)
+      g.n[a] = std::max(1, std::min(4096, static_cast<int>(std::ceil(extent[a] / g.h))));
+    return g;
+  }
+  long cells() const { return static_cast<long>(n[0]) * n[1] * n[2]; }
+  int coordinate(double x, int axis) const {
+    const double c = std::floor((x - origin[axis]) / h);
+    return static_cast<int>(std::clamp(c, -1.0, static_cast<double>(n[axis])));
+  }
+  /// Cell coordinates clamped into the grid.
+  std::array<int, 3> clamped_cell(const Vec3& p) const {
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) c[a] = std::clamp(coordinate(p[a], a), 0, n[a] - 1);
+    return c;
+  }
+  long index(int i, int j, int k) const { return i + static_cast<long>(n[0]) * (j + static_cast<long>(n[1]) * k); }
+  Vec3 centre(int i, int j, int k) const { return origin + h * Vec3(i + 0.5, j + 0.5, k + 0.5); }
+};
+
+/// Side of points with respect to the muscle: grid classification, exact test near the surface.
+class InsideGrid {
+ public:
+  InsideGrid(const TriangleMesh& mesh, const SurfaceQuery& query) : query_(query) {
+    const BoundingBox box = bounding_box(mesh.positions);
+    const double diagonal = box.diagonal();
+    grid_ = UniformGrid::over(box, 0.01 * diagonal, 64.0 * 64.0 * 64.0);
+    bounds_ = box;
+    const double eps = 1e-9 * diagonal;
+    state_.assign(static_cast<std::size_t>(grid_.cells()), kFree);
+    for (const Triangle& t : mesh.triangles) {
+      const Vec3& p0 = mesh.positions[static_cast<std::size_t>(t[0])];
+      const Vec3& p1 = mesh.positions[static_cast<std::size_t>(t[1])];
+      const Vec3& p2 = mesh.positions[static_cast<std::size_t>(t[2])];
+      const Vec3 tmin = p0.cwiseMin(p1).cwiseMin(p2), tmax = p0.cwiseMax(p1).cwiseMax(p2);
+      std::array<int, 3> lo{}, hi{};
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::max(0, grid_.coordinate(tmin[a] - eps, a));
+        hi[a] = std::min(grid_.n[a] - 1, grid_.coordinate(tmax[a] + eps, a));
+      }
+      for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int i = lo[0]; i <= hi[0]; ++i) state_[static_cast<std::size_t>(grid_.index(i, j, k))] = kNear;
+    }
+    // Flood fill the free regions (6-neighbourhood); one exact test per region.
+    std::vector<long> stack;
+    for (int k = 0; k < grid_.n[2]; ++k)
+      for (int j = 0; j < grid_.n[1]; ++j)
+        for (int i = 0; i < grid_.n[0]; ++i) {
+          const long start = grid_.index(i, j, k);
+          if (state_[static_cast<std::size_t>(start)] != kFree) continue;
+          const Side side = query_.side(grid_.centre(i, j, k));
+          const char mark = side == Side::inside ? kInside : kOutside;
+          state_[static_cast<std::size_t>(start)] = mark;
+          stack.push_back(start);
+          while (!stack.empty()) {
+            const long c = stack.back();
+            stack.pop_back();
+            const int ci = static_cast<int>(c % grid_.n[0]);
+            const int cj = static_cast<int>((c / grid_.n[0]) % grid_.n[1]);
+            const int ck = static_cast<int>(c / (static_cast<long>(grid_.n[0]) * grid_.n[1]));
+            const int nb[6][3] = {{ci - 1, cj, ck}, {ci + 1, cj, ck}, {ci, cj - 1, ck},
+                                  {ci, cj + 1, ck}, {ci, cj, ck - 1}, {ci, cj, ck + 1}};
+            for (const auto& q : nb) {
+              if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= grid_.n[0] || q[1] >= grid_.n[1] || q[2] >= grid_.n[2])
+                continue;
+              const long qi = grid_.index(q[0], q[1], q[2]);
+              if (state_[static_cast<std::size_t>(qi)] != kFree) continue;
+              state_[static_cast<std::size_t>(qi)] = mark;
+              stack.push_back(qi);
+            }
+          }
+          ++regions_;
+        }
+  }
+
+  /// Exact side of p (thread-safe once constructed).
+  Side side(const Vec3& p) const {
+    for (int a = 0; a < 3; ++a)
+      if (p[a] < bounds_.min[a] || p[a] > bounds_.max[a]) return Side::outside;
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) {
+      c[a] = grid_.coordinate(p[a], a);
+      if (c[a] < 0 || c[a] >= grid_.n[a]) return query_.side(p);  // cannot happen inside bounds_
+    }
+    const char s = state_[static_cast<std::size_t>(grid_.index(c[0], c[1], c[2]))];
+    if (s == kInside) return Side::inside;
+    if (s == kOutside) return Side::outside;
+    return query_.side(p);
+  }
+
+  const BoundingBox& bounds() const { return bounds_; }
+
+ private:
+  static constexpr char kFree = 0, kNear = 1, kInside = 2, kOutside = 3;
+  const SurfaceQuery& query_;
+  UniformGrid grid_;
+  BoundingBox bounds_;
+  std::vector<char> state_;
+  int regions_ = 0;
+};
+
+/// Distance from p to the segment [a, b].
+double segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 d = b - a;
+  const double dd = d.squaredNorm();
+  double t = dd > 0.0 ? (p - a).dot(d) / dd : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return (a + t * d - p).norm();
+}
+
+/// Nearest-segment distances: segments bucketed into a uniform grid (compressed rows).
+class SegmentGrid {
+ public:
+  SegmentGrid(const Polylines& fibres, const BoundingBox& region) {
+    for (const auto& line : fibres.lines)
+      for (std::size_t k = 0; k + 1 < line.size(); ++k) segments_.push_back({line[k], line[k + 1]});
+    BoundingBox box = region;
+    for (const auto& line : fibres.lines)
+      for (const Vec3& p : line) {
+        box.min = box.min.cwiseMin(p);
+        box.max = box.max.cwiseMax(p);
+      }
+    double mean_length = 0.0;
+    for (const auto& s : segments_) mean_length += (s[1] - s[0]).norm();
+    mean_length /= std::max<std::size_t>(1, segments_.size());
+    const double target = std::clamp(4.0 * static_cast<double>(segments_.size()), 1000.0, 4.0e6);
+    grid_ = UniformGrid::over(box, 1e-6 * std::max(box.diagonal(), 1e-300), target);
+    // Cells much smaller than a segment would list each segment many times.
+    if (grid_.h < 0.5 * mean_length) {
+      const Vec3 extent = box.max - box.min;
+      const double cells = std::max(1.0, extent.prod() / std::pow(0.5 * mean_length, 3));
+      grid_ = UniformGrid::over(box, 1e-6 * std::max(box.diagonal(), 1e-300), std::min(cells, target));
+    }
+    // Counting pass, then filling pass (compressed rows: start_[c] .. start_[c+1]).
+    start_.assign(static_cast<std::size_t>(grid_.cells()) + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<long> fill;
+      if (pass == 1) {
+        for (std::size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+        items_.resize(static_cast<std::size_t>(start_.back()));
+        fill.assign(start_.begin(), start_.end() - 1);
+      }
+      for (std::size_t s = 0; s < segments_.size(); ++s) {
+        const Vec3 lo = segments_[s][0].cwiseMin(segments_[s][1]);
+        const Vec3 hi = segments_[s][0].cwiseMax(segments_[s][1]);
+        const std::array<int, 3> a = grid_.clamped_cell(lo), b = grid_.clamped_cell(hi);
+        for (int k = a[2]; k <= b[2]; ++k)
+          for (int j = a[1]; j <= b[1]; ++j)
+            for (int i = a[0]; i <= b[0]; ++i) {
+              const long c = grid_.index(i, j, k);
+              if (pass == 0)
+                ++start_[static_cast<std::size_t>(c) + 1];
+              else
+                items_[static_cast<std::size_t>(fill[static_cast<std::size_t>(c)]++)] = static_cast<int>(s);
+            }
+      }
+    }
+  }
+
+  /// Distance from p to the nearest segment (p within the grid's box).
+  double nearest(const Vec3& p) const {
+    const std::array<int, 3> c = grid_.clamped_cell(p);
+    const int max_ring = std::max({grid_.n[0], grid_.n[1], grid_.n[2]});
+    double best = std::numeric_limits<double>::infinity();
+    for (int ring = 0; ring <= max_ring; ++ring) {
+      for (int k = c[2] - ring; k <= c[2] + ring; ++k) {
+        if (k < 0 || k >= grid_.n[2]) continue;
+        for (int j = c[1] - ring; j <= c[1] + ring; ++j) {
+          if (j < 0 || j >= grid_.n[1]) continue;
+          const bool face = std::abs(k - c[2]) == ring || std::abs(j - c[1]) == ring;
+          for (int i = c[0] - ring; i <= c[0] + ring; i += (face || ring == 0) ? 1 : 2 * ring) {
+            if (i < 0 || i >= grid_.n[0]) continue;
+            const long cell = grid_.index(i, j, k);
+            for (long e = start_[static_cast<std::size_t>(cell)]; e < start_[static_cast<std::size_t>(cell) + 1]; ++e) {
+              const auto& seg = segments_[static_cast<std::size_t>(items_[static_cast<std::size_t>(e)])];
+              best = std::min(best, segment_distance(p, seg[0], seg[1]));
+            }
+          }
+        }
+      }
+      // Every cell at ring distance > ring is at least ring * h away from p (p lies in cell c).
+      if (best <= ring * grid_.h) break;
+    }
+    return best;
+  }
+
+ private:
+  std::vector<std::array<Vec3, 2>> segments_;
+  UniformGrid grid_;
+  std::vector<long> start_;
+  std::vector<int> items_;
+};
+
+double polyline_length(const std::vector<Vec3>& line) {
+  double length = 0.0;
+  for (std::size_t k = 0; k + 1 < line.size(); ++k) length += (line[k + 1] - line[k]).norm();
+  return length;
+}
+
+/// Nearest-rank percentile of unsorted values (q in (0, 1]).
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(values.size())));
+  const std::size_t index = std::min(values.size() - 1, rank == 0 ? 0 : rank - 1);
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
+  return values[index];
+}
+
+/// Inverted cells of a fibre lattice (see fibre_check.h). Each hexahedron (corners x_abc, a along
+/// r, b along s, c along the fibre) is split into the six tetrahedra of the Kuhn triangulation
+/// around the diagonal x_000 - x_111; with the permutation's parity applied, all six have the
+/// same sign as the lattice's frame (r, s, fibre) when the cell is not folded.
+void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, CheckReport& report) {
+  static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
+  static const double parity[6] = {1, 1, 1, -1, -1, -1};
+  struct Cell {
+    std::array<Vec3, 8> x;  // index a + 2b + 4c
+  };
+  std::vector<std::array<double, 6>> volumes;
+  std::vector<std::array<double, 6>> scales;
+  for (int s = 0; s + 1 < grid.ns; ++s)
+    for (int r = 0; r + 1 < grid.nr; ++r) {
+      const int l00 = grid.at(r, s), l10 = grid.at(r + 1, s), l01 = grid.at(r, s + 1), l11 = grid.at(r + 1, s + 1);
+      if (l00 < 0 || l10 < 0 || l01 < 0 || l11 < 0) continue;
+      const int lines[4] = {l00, l10, l01, l11};
+      for (int k = 0; k + 1 < grid.points; ++k) {
+        Cell cell;
+        for (int c = 0; c < 2; ++c)
+          for (int q = 0; q < 4; ++q) cell.x[static_cast<std::size_t>(q + 4 * c)] = fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
+        std::array<double, 6> vol{}, scale{};
+        for (int t = 0; t < 6; ++t) {
+          int corner = 0;
+          std::array<Vec3, 4> v;
+          v[0] = cell.x[0];
+          for (int step = 0; step < 3; ++step) {
+            corner |= 1 << perms[t][step];
+            v[static_cast<std::size_t>(step) + 1] = cell.x[static_cast<std::size_t>(corner)];
+          }
+          const Vec3 a = v[1] - v[0], b = v[2] - v[0], c = v[3] - v[0];
+          vol[static_cast<std::size_t>(t)] = parity[t] * a.dot(b.cross(c)) / 6.0;
+          scale[static_cast<std::size_t>(t)] = a.norm() * b.norm() * c.norm() / 6.0;
+        }
+        volumes.push_back(vol);
+        scales.push_back(scale);
+      }
+    }
+  report.cells = static_cast<long>(volumes.size());
+  double total = 0.0;
+  for (const auto& v : volumes)
+    for (double x : v) total += x;
+  const double reference = total >= 0.0 ? 1.0 : -1.0;
+  long inverted = 0;
+  for (std::size_t c = 0; c < volumes.size(); ++c) {
+    bool bad = false;
+    for (int t = 0; t < 6; ++t) {
+      const double v = reference * volumes[c][static_cast<std::size_t>(t)];
+      // Flat: below 1e-12 of the volume its edges could span (round-off level), or zero edges.
+      if (!(v > 1e-12 * scales[c][static_cast<std::size_t>(t)])) bad = true;
+    }
+    inverted += bad ? 1 : 0;
+  }
+  report.inverted_cells = inverted;
+}
+
+std::string fmt_double(double v) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.4g", v);
+  return buffer;
+}
+
+}  // namespace
+
+void CheckOptions::validate() const {
+  auto bad = [](const std::string& field, double value, const std::string& rule) {
+    char buffer[64];
+    std::snprintf(buffer, sizeof(buffer), "%g", value);
+    throw OptionError("CheckOptions::" + field + " must be " + rule + " (got " + buffer + ")");
+  };
+  if (coverage_samples < 1) bad("coverage_samples", coverage_samples, "at least 1");
+  if (!(end_tolerance >= 0.0) || !std::isfinite(end_tolerance)) bad("end_tolerance", end_tolerance, ">= 0 and finite");
+  if (!(min_inside_fraction >= 0.0 && min_inside_fraction <= 1.0))
+    bad("min_inside_fraction", min_inside_fraction, "in [0, 1]");
+  if (max_inverted_cells < 0) bad("max_inverted_cells", static_cast<double>(max_inverted_cells), ">= 0");
+  if (!(max_coverage_p95 > 0.0) || !std::isfinite(max_coverage_p95))
+    bad("max_coverage_p95", max_coverage_p95, "> 0 and finite");
+  if (!(max_attachment > 0.0) || !std::isfinite(max_attachment)) bad("max_attachment", max_attachment, "> 0 and finite");
+  if (outside_listed < 0) bad("outside_listed", outside_listed, ">= 0");
+}
+
+double muscle_length(const TriangleMesh& muscle) {
+  if (muscle.positions.empty()) return 0.0;
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& p : muscle.positions) mean += p;
+  mean /= static_cast<double>(muscle.positions.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : muscle.positions) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Vec3 axis = eig.eigenvectors().col(2);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Vec3& p : muscle.positions) {
+    const double t = (p - mean).dot(axis);
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  }
+  return hi - lo;
+}
+
+CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const Attachments& areas,
+                         const CheckOptions& options) {
+  options.validate();
+  if (muscle.triangles.empty()) throw TopologyError("fibre check: the muscle mesh has no triangles");
+  const SurfaceQuery query(muscle);
+  return check_fibres(fibres, muscle, query, areas, options);
+}
+
+CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const SurfaceQuery& query,
+                         const Attachments& areas, const CheckOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  options.validate();
+  if (fibres.lines.empty()) throw InputError(ErrorCode::file_empty, "fibre check: there are no fibres");
+  for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
+    if (fibres.lines[f].size() < 2)
+      throw InputError(ErrorCode::malformed, "fibre check: fibre " + std::to_string(f) + " has " +
+                                                 std::to_string(fibres.lines[f].size()) + " point(s), needs at least 2");
+    for (const Vec3& p : fibres.lines[f])
+      if (!p.allFinite())
+        throw InputError(ErrorCode::bad_number, "fibre check: fibre " + std::to_string(f) + " has a point that is not finite");
+  }
+  if (muscle.triangles.empty()) throw TopologyError("fibre check: the muscle mesh has no triangles");
+  const double volume = signed_volume(muscle);
+  if (!(volume > 0.0))
+    throw TopologyError("fibre check: the muscle has volume " + fmt_double(volume) +
+                        " (needs a closed, outward-oriented surface: repair it first)");
+  if (areas.origin.points.empty() || areas.insertion.points.empty())
+    throw InputError(ErrorCode::landmarks, "fibre check: the " +
+                                               std::string(areas.origin.points.empty() ? "origin" : "insertion") +
+                                               " area has no point");
+
+  CheckReport report;
+  report.thresholds = options;
+  report.fibres = static_cast<long>(fibres.lines.size());
+  const double diagonal = bounding_box(muscle.positions).diagonal();
+  const InsideGrid inside(muscle, query);
+
+  // ---- inside test of every fibre point ----
+  std::vector<std::size_t> first_point(fibres.lines.size() + 1, 0);
+  for (std::size_t f = 0; f < fibres.lines.size(); ++f) first_point[f + 1] = first_point[f] + fibres.lines[f].size();
+  const std::size_t total_points = first_point.back();
+  report.points = static_cast<long>(total_points);
+  std::vector<char> point_ok(total_points, 0);
+  const double end_tolerance = options.end_tolerance * diagonal;
+  tbb::parallel_for(std::size_t(0), fibres.lines.size(), [&](std::size_t f) {
+    const auto& line = fibres.lines[f];
+    for (std::size_t k = 0; k < line.size(); ++k) {
+      const Side side = inside.side(line[k]);
+      bool ok = side == Side::inside;
+      if (!ok && (k == 0 || k + 1 == line.size())) ok = query.closest_point(line[k]).distance <= end_tolerance;
+      point_ok[first_point[f] + k] = ok ? 1 : 0;
+    }
+  });
+  for (std::size_t f = 0; f < fibres.lines.size(); ++f)
+    for (std::size_t k = 0; k < fibres.lines[f].size(); ++k) {
+      if (point_ok[first_point[f] + k]) {
+        ++report.inside_points;
+        continue;
+      }
+      if (static_cast<int>(report.outside_examples.size()) < options.outside_listed) {
+        OutsidePoint o;
+        o.fibre = static_cast<int>(f);
+        o.point = static_cast<int>(k);
+        o.position = fibres.lines[f][k];
+        o.distance = query.closest_point(o.position).distance;
+        report.outside_examples.push_back(o);
+      }
+    }
+  report.outside = report.points - report.inside_points;
+  report.inside_fraction = static_cast<double>(report.inside_points) / static_cast<double>(report.points);
+
+  // ---- lattice cells ----
+  const FibreGrid grid = fibre_grid(fibres);
+  report.lattice = grid.is_lattice();
+  report.lattice_nr = grid.nr;
+  report.lattice_ns = grid.ns;
+  if (report.lattice) count_inverted_cells(fibres, grid, report);
+
+  // ---- lengths and turning angles ----
+  std::vector<double> lengths(fibres.lines.size());
+  double max_angle = 0.0;
+  for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
+    const auto& line = fibres.lines[f];
+    lengths[f] = polyline_length(line);
+    Vec3 previous = Vec3::Zero();
+    for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+      const Vec3 d = line[k + 1] - line[k];
+      if (d.norm() == 0.0) continue;  // repeated points have no direction
+      if (previous.norm() > 0.0) {
+        const double c = std::clamp(previous.normalized().dot(d.normalized()), -1.0, 1.0);
+        max_angle = std::max(max_angle, std::acos(c) * 180.0 / kPi);
+      }
+      previous = d;
+    }
+  }
+  report.max_turning_angle_deg = max_angle;
+  double sum = 0.0, sum2 = 0.0;
+  report.length.min = std::numeric_limits<double>::infinity();
+  report.length.max = 0.0;
+  for (double l : lengths) {
+    sum += l;
+    sum2 += l * l;
+    report.length.min = std::min(report.length.min, l);
+    report.length.max = std::max(report.length.max, l);
+  }
+  const double n = static_cast<double>(lengths.size());
+  report.length.mean = sum / n;
+  const double variance = std::max(0.0, sum2 / n - report.length.mean * report.length.mean);
+  report.length.cv = report.length.mean > 0.0 ? std::sqrt(variance) / report.length.mean : 0.0;
+
+  // ---- coverage ----
+  report.coverage.volume = volume;
+  report.coverage.ideal_spacing = report.length.mean > 0.0 ? std::sqrt(volume / (n * report.length.mean)) : 0.0;
+  {
+    const BoundingBox& box = inside.bounds();
+    std::mt19937_64 rng(options.seed);
+    std::uniform_real_distribution<double> ux(box.min.x(), box.max.x()), uy(box.min.y(), box.max.y()),
+        uz(box.min.z(), box.max.z());
+    std::vector<Vec3> samples;
+    const std::size_t wanted = static_cast<std::size_t>(options.coverage_samples);
+    samples.reserve(wanted);
+    // Candidates come from one seeded sequence and are accepted in order, so the result does
+    // not depend on the batching or the thread count. The attempt cap only guards a degenerate
+    // muscle (volume far below its box).
+    const std::size_t max_attempts = 1000 * wanted + 100000;
+    std::size_t attempts = 0;
+    while (samples.size() < wanted && attempts < max_attempts) {
+      const std::size_t batch = std::min(max_attempts - attempts, std::max<std::size_t>(1024, 2 * (wanted - samples.size())));
+      std::vector<Vec3> candidates(batch);
+      for (auto& c : candidates) c = Vec3(ux(rng), uy(rng), uz(rng));
+      attempts += batch;
+      std::vector<char> accepted(batch, 0);
+      tbb::parallel_for(std::size_t(0), batch, [&](std::size_t i) { accepted[i] = inside.side(candidates[i]) == Side::inside; });
+      for (std::size_t i = 0; i < batch && samples.size() < wanted; ++i)
+        if (accepted[i]) samples.push_back(candidates[i]);
+    }
+    const SegmentGrid segments(fibres, box);
+    std::vector<double> distances(samples.size());
+    tbb::parallel_for(std::size_t(0), samples.size(), [&](std::size_t i) { distances[i] = segments.nearest(samples[i]); });
+    report.coverage.samples = static_cast<int>(samples.size());
+    if (!distances.empty() && report.coverage.ideal_spacing > 0.0) {
+      double total = 0.0, largest = 0.0;
+      for (double d : distances) {
+        total += d;
+        largest = std::max(largest, d);
+      }
+      const double spacing = report.coverage.ideal_spacing;
+      report.coverage.mean = total / static_cast<double>(distances.size()) / spacing;
+      report.coverage.max = largest / spacing;
+      report.coverage.p95 = percentile(std::move(distances), 0.95) / spacing;
+    }
+  }
+
+  // ---- attachment ----
+  const double length = muscle_length(muscle);
+  report.attachment.muscle_length = length;
+  {
+    std::vector<double> to_origin(fibres.lines.size()), to_insertion(fibres.lines.size());
+    auto nearest = [](const AttachmentArea& area, const Vec3& p) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const SurfacePoint& q : area.points) best = std::min(best, (q.position - p).squaredNorm());
+      return std::sqrt(best);
+    };
+    tbb::parallel_for(std::size_t(0), fibres.lines.size(), [&](std::size_t f) {
+      to_origin[f] = nearest(areas.origin, fibres.lines[f].front()) / length;
+      to_insertion[f] = nearest(areas.insertion, fibres.lines[f].back()) / length;
+    });
+    for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
+      report.attachment.origin_max = std::max(report.attachment.origin_max, to_origin[f]);
+      report.attachment.insertion_max = std::max(report.attachment.insertion_max, to_insertion[f]);
+      report.attachment.origin_mean += to_origin[f] / n;
+      report.attachment.insertion_mean += to_insertion[f] / n;
+    }
+  }
+
+  // ---- verdict ----
+  if (report.inside_fraction < options.min_inside_fraction) report.failed.push_back("inside");
+  if (report.inverted_cells > options.max_inverted_cells) report.failed.push_back("inverted_cells");
+  if (!(report.coverage.p95 <= options.max_coverage_p95)) report.failed.push_back("coverage");
+  if (!(std::max(report.attachment.origin_max, report.attachment.insertion_max) <= options.max_attachment))
+    report.failed.push_back("attachment");
+  report.pass = report.failed.empty();
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+nlohmann::json CheckReport::to_json() const {
+  nlohmann::json outside_list = nlohmann::json::array();
+  for (const OutsidePoint& o : outside_examples)
+    outside_list.push_back({{"fibre", o.fibre},
+                            {"point", o.point},
+                            {"position", {o.position.x(), o.position.y(), o.position.z()}},
+                            {"distance_to_surface", o.distance}});
+  return {
+      {"fibres", fibres},
+      {"points", points},
+      {"inside_fraction", inside_fraction},
+      {"inside_points", inside_points},
+      {"outside_points", outside},
+      {"outside_examples", outside_list},
+      {"lattice", lattice},
+      {"lattice_nr", lattice_nr},
+      {"lattice_ns", lattice_ns},
+      {"cells", cells},
+      {"inverted_cells", inverted_cells},
+      {"coverage",
+       {{"mean", coverage.mean},
+        {"p95", coverage.p95},
+        {"max", coverage.max},
+        {"ideal_spacing", coverage.ideal_spacing},
+        {"volume", coverage.volume},
+        {"samples", coverage.samples}}},
+      {"attachment",
+       {{"origin_max", attachment.origin_max},
+        {"origin_mean", attachment.origin_mean},
+        {"insertion_max", attachment.insertion_max},
+        {"insertion_mean", attachment.insertion_mean},
+        {"muscle_length", attachment.muscle_length}}},
+      {"length", {{"mean", length.mean}, {"min", length.min}, {"max", length.max}, {"cv", length.cv}}},
+      {"max_turning_angle_deg", max_turning_angle_deg},
+      {"thresholds",
+       {{"min_inside_fraction", thresholds.min_inside_fraction},
+        {"max_inverted_cells", thresholds.max_inverted_cells},
+        {"max_coverage_p95", thresholds.max_coverage_p95},
+        {"max_attachment", thresholds.max_attachment},
+        {"end_tolerance", thresholds.end_tolerance},
+        {"coverage_samples", thresholds.coverage_samples},
+        {"seed", thresholds.seed}}},
+      {"pass", pass},
+      {"failed", failed},
+      {"seconds", seconds},
+  };
+}
+
+std::string CheckReport::to_table() const {
+  auto verdict = [this](const char* name) {
+    return std::find(failed.begin(), failed.end(), name) == failed.end() ? "pass" : "FAIL";
+  };
+  char line[256];
+  std::string out;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "criterion", "value", "threshold", "verdict");
+  out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "inside_fraction",
+                (fmt_double(inside_fraction) + " (" + std::to_string(outside) + " out)").c_str(),
+                (">= " + fmt_double(thresholds.min_inside_fraction)).c_str(), verdict("inside"));
+  out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "inverted_cells",
+                lattice ? (std::to_string(inverted_cells) + " of " + std::to_string(cells)).c_str() : "n/a (no lattice)",
+                ("<= " + std::to_string(thresholds.max_inverted_cells)).c_str(), verdict("inverted_cells"));
+  out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "coverage_p95",
+                (fmt_double(coverage.p95) + " (mean " + fmt_double(coverage.mean) + ")").c_str(),
+                ("<= " + fmt_double(thresholds.max_coverage_p95)).c_str(), verdict("coverage"));
+  out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "attachment_max",
+                (fmt_double(attachment.origin_max) + " / " + fmt_double(attachment.insertion_max)).c_str(),
+                ("<= " + fmt_double(thresholds.max_attachment)).c_str(), verdict("attachment"));
+  out += line;
+  out += "fibres " + std::to_string(fibres) + ", points " + std::to_string(points) + ", ideal spacing " +
+         fmt_double(coverage.ideal_spacing) + " (" + std::to_string(coverage.samples) + " samples)\n";
+  out += "length mean " + fmt_double(length.mean) + ", min " + fmt_double(length.min) + ", max " +
+         fmt_double(length.max) + ", cv " + fmt_double(length.cv) + "; largest turning angle " +
+         fmt_double(max_turning_angle_deg) + " deg\n";
+  for (const OutsidePoint& o : outside_examples)
+    out += "outside: fibre " + std::to_string(o.fibre) + " point " + std::to_string(o.point) + " at (" +
+           fmt_double(o.position.x()) + ", " + fmt_double(o.position.y()) + ", " + fmt_double(o.position.z()) +
+           "), " + fmt_double(o.distance) + " from the surface\n";
+  std::string result = pass ? "pass" : "FAIL:";
+  for (const auto& f : failed) result += " " + f;
+  out += "result: " + result + " (" + fmt_double(seconds) + " s)\n";
+  return out;
+}
+
+}  // namespace fascicle
