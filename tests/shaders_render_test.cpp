@@ -235,6 +235,71 @@ TEST_CASE("a capsule with fibres renders: background, mesh over the centre, orig
   CHECK_THROWS_AS(renderer.render(bare, options), OptionError);
 }
 
+TEST_CASE("translucent surfaces are blended back to front whatever their order in the scene", "[gpu][render]") {
+  // Two parallel squares facing the first view (which looks along -y: the axis is x, the first
+  // view's side is y): red in front (y = 1), blue behind (y = 0), listed front first, so
+  // drawing in scene order would leave blue on top.
+  RenderScene scene;
+  auto square = [&](double y, const Rgba& colour) {
+    const int base = static_cast<int>(scene.surface_points.size());
+    for (const auto& [x, z] : {std::pair<double, double>{0, 0}, {2, 0}, {2, 1}, {0, 1}})
+      scene.surface_points.emplace_back(x, y, z);
+    scene.surface_triangles.push_back({base, base + 1, base + 2});
+    scene.surface_triangles.push_back({base, base + 2, base + 3});
+    scene.triangle_colours.push_back(colour);
+    scene.triangle_colours.push_back(colour);
+  };
+  square(1.0, Rgba{1, 0, 0, 0.6f});
+  square(0.0, Rgba{0, 0, 1, 0.6f});
+  scene.axis = Vec3::UnitX();
+  RenderOptions options;
+  options.views = 2;
+  options.width = 64;
+  options.height = 48;
+  Renderer renderer(context());
+  const std::vector<Camera> cameras = view_cameras(scene, view_layout(options));
+  REQUIRE(cameras[0].forward.y() == Approx(-1.0));  // view 0 sees red in front
+  REQUIRE(cameras[1].forward.y() == Approx(1.0));   // view 1 sees blue in front
+  const Image image = renderer.render(scene, options);
+  const auto front_red = image.pixel(32, 24), front_blue = image.pixel(64 + 32, 24);
+  INFO("view 0 " << int(front_red[0]) << "," << int(front_red[1]) << "," << int(front_red[2]) << "; view 1 "
+                 << int(front_blue[0]) << "," << int(front_blue[1]) << "," << int(front_blue[2]));
+  // Over white: front 0.6 of its colour, the back one 0.6 x 0.4 = 0.24 of its colour.
+  CHECK(front_red[0] > front_red[2] + 60);
+  CHECK(front_blue[2] > front_blue[0] + 60);
+}
+
+TEST_CASE("fascicle render draws raw corpus muscles as read", "[gpu][program][corpus]") {
+  FASCICLE_REQUIRE_DATA();
+  if (!std::filesystem::exists(test::program())) {
+    WARN("skipped: " << test::program() << " is not built");
+    return;
+  }
+  test::TempDir dir;
+  // Unrepaired: the LHDL file with its blank header line, and an STL soup with hundreds of
+  // non-manifold edges.
+  for (const std::string name : {"muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk",
+                                 "muscles/opendihu/left_biceps_brachii.stl"}) {
+    INFO(name);
+    const std::string out = dir.file("muscle.png");
+    REQUIRE(test::run_command(test::program() + " -q render " + test::data_dir() + "/" + name + " -o " + out +
+                              " --size 400x300") == 0);
+    const Image image = read_png(out);
+    REQUIRE(image.width == 800);
+    REQUIRE(image.height == 600);
+    for (int v = 0; v < 4; ++v) {
+      const int x0 = (v % 2) * 400, y0 = (v / 2) * 300;
+      CHECK(equals(image.pixel(x0, y0), 255, 255, 255));
+      int covered = 0;
+      for (int y = y0; y < y0 + 300; ++y)
+        for (int x = x0; x < x0 + 400; ++x) covered += !equals(image.pixel(x, y), 255, 255, 255);
+      // A long muscle, framed on its length: a few percent of the tile at least, never all.
+      CHECK(covered > 400 * 300 / 50);
+      CHECK(covered < 400 * 300 / 2);
+    }
+  }
+}
+
 TEST_CASE("fascicle render writes a PNG; missing input, bad options exit with their codes", "[gpu][program]") {
   if (!std::filesystem::exists(test::program())) {
     WARN("skipped: " << test::program() << " is not built");
