@@ -54,7 +54,8 @@ void run_render(const RenderArgs& args) {
   const bool is_template = !args.template_name.empty();
   if (is_template && !args.mesh.empty())
     throw OptionError("--template draws a template; it takes no MESH (got " + args.mesh + ")");
-  if (!is_template && args.mesh.empty()) throw OptionError("render: give a MESH file or --template NAME");
+  if (!is_template && args.mesh.empty())
+    throw Error(ErrorCode::usage, "render: give a MESH file or --template NAME");
   if (lower_extension(args.output) != "png")
     throw InputError(ErrorCode::unknown_format, args.output + ": the picture must be a .png file");
 #ifdef FASCICLE_HAVE_SHADERS

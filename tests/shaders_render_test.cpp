@@ -335,6 +335,8 @@ TEST_CASE("fascicle render writes a PNG; missing input, bad options exit with th
   CHECK(test::run_command(fascicle + mesh + " -o " + fresh + " --size 8x6 2>/dev/null") == 18);
   CHECK(test::run_command(fascicle + mesh + " -o " + fresh + " --background pink 2>/dev/null") == 18);
   CHECK(test::run_command(fascicle + "--template feathered -o " + fresh + " 2>/dev/null") == 18);
+  CHECK(test::run_command(fascicle + "-o " + fresh + " 2>/dev/null") == 2);  // neither MESH nor --template
+  CHECK(test::run_command(fascicle + mesh + " --template parallel -o " + fresh + " 2>/dev/null") == 18);
   CHECK(test::run_command(fascicle + mesh + " -o " + dir.file("view.jpg") + " 2>/dev/null") == 5);
   CHECK(!std::filesystem::exists(fresh));
   CHECK(!std::filesystem::exists(dir.file("view.jpg")));
