@@ -128,6 +128,12 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--max-face-depth", o.placement.max_face_depth,
                   "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
       ->capture_default_str();
+  cmd->add_option("--cast-rounds", o.cast_rounds,
+                  "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
+      ->capture_default_str();
+  cmd->add_option("--band-by-length", o.placement.band_by_length,
+                  "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
+      ->capture_default_str();
   cmd->add_option("--contact-rounds", o.contact_rounds,
                   "Containment rounds: points the settle leaves outside are fixed just inside and the settle rerun")
       ->capture_default_str();

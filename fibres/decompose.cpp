@@ -2,11 +2,13 @@
 
 #include "fibres/fibre_grid.h"
 #include "geometry/errors.h"
+#include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
 #include "morph/surface_query.h"
 
 #include <Eigen/SVD>
 #include <chrono>
+#include <tuple>
 #include <cmath>
 
 #ifdef FASCICLE_HAVE_SHADERS
@@ -90,6 +92,92 @@ std::vector<int> outside_free_points(const springs::SpringSystem& system, const 
   return out;
 }
 
+// First hit of the ray p + t d (t > 0) with the muscle surface (Moeller-Trumbore on every
+// triangle whose box meets the box of the ray's first `reach` length units); false when none.
+bool ray_hit(const TriangleMesh& mesh, const Vec3& p, const Vec3& d, double reach, Vec3& hit) {
+  double best = reach;
+  bool found = false;
+  const Vec3 q = p + reach * d;
+  const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
+  for (const Triangle& t : mesh.triangles) {
+    const Vec3& a = mesh.positions[t[0]];
+    const Vec3& b = mesh.positions[t[1]];
+    const Vec3& c = mesh.positions[t[2]];
+    if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
+    const Vec3 e1 = b - a, e2 = c - a, h = d.cross(e2);
+    const double det = e1.dot(h);
+    if (std::abs(det) < 1e-300) continue;
+    const Vec3 s = p - a;
+    const double u = s.dot(h) / det;
+    if (u < 0.0 || u > 1.0) continue;
+    const Vec3 qv = s.cross(e1);
+    const double v = d.dot(qv) / det;
+    if (v < 0.0 || u + v > 1.0) continue;
+    const double t_hit = e2.dot(qv) / det;
+    if (t_hit > 0.0 && t_hit < best) {
+      best = t_hit;
+      found = true;
+    }
+  }
+  if (found) hit = p + best * d;
+  return found;
+}
+
+// The fibre ends of each attachment face, rebuilt under the layer of points next to it: that
+// layer (its inner points) is shrunk towards its centroid by a factor lambda and cast onto the
+// surface along the end axis (from the second layer's centroid through the first's). Seen along
+// the axis the face is then a scaled copy of the layer above it, so the end layer of cells are
+// frustums of that layer's cells and do not fold, whatever the sphere map did near the region
+// centre. lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an
+// attachment-area point (at most 20 times; the ends stay where they were when no lambda fits).
+nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
+                          const Attachments& areas, double radius) {
+  nlohmann::json out = nlohmann::json::array();
+  const double reach = 4.0 * (bounding_box(muscle.positions).diagonal() + 1e-300);
+  for (const auto& [k_end, k1, k2, area] :
+       {std::tuple<int, int, int, const AttachmentArea*>{0, 1, 2, &areas.origin},
+        std::tuple<int, int, int, const AttachmentArea*>{lattice.nz - 1, lattice.nz - 2, lattice.nz - 3, &areas.insertion}}) {
+    if (k2 < 0 || k2 >= lattice.nz || k1 == k_end) continue;
+    auto at = [&](int i, int j, int k) -> Vec3& { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
+    Vec3 c1 = Vec3::Zero(), c2 = Vec3::Zero();
+    int count = 0;
+    for (int j = 1; j + 1 < lattice.ny; ++j)
+      for (int i = 1; i + 1 < lattice.nx; ++i) c1 += at(i, j, k1), c2 += at(i, j, k2), ++count;
+    c1 /= count;
+    c2 /= count;
+    const Vec3 axis = (c1 - c2).normalized();
+    if (!axis.allFinite()) continue;
+    double lambda = 1.0;
+    bool placed = false;
+    std::vector<Vec3> ends;
+    for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
+      ends.clear();
+      placed = true;
+      for (int j = 1; j + 1 < lattice.ny && placed; ++j)
+        for (int i = 1; i + 1 < lattice.nx && placed; ++i) {
+          const Vec3 start = c1 + lambda * (at(i, j, k1) - c1);
+          Vec3 hit;
+          if (!ray_hit(muscle, start, axis, reach, hit)) {
+            placed = false;
+            break;
+          }
+          double nearest = 1e300;
+          for (const SurfacePoint& p : area->points) nearest = std::min(nearest, (p.position - hit).squaredNorm());
+          if (nearest > radius * radius) placed = false;
+          ends.push_back(hit);
+        }
+    }
+    if (placed) {
+      lambda /= 0.8;
+      std::size_t n = 0;
+      for (int j = 1; j + 1 < lattice.ny; ++j)
+        for (int i = 1; i + 1 < lattice.nx; ++i) at(i, j, k_end) = ends[n++];
+    }
+    out.push_back({{"face", k_end == 0 ? "origin" : "insertion"}, {"cast", placed}, {"shrink", placed ? lambda : 0.0}});
+  }
+  return out;
+}
+
 }  // namespace
 
 const char* rest_shape_name(RestShape shape) {
@@ -128,6 +216,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("resolution: must be in 2..100000 points per fibre, got " + std::to_string(resolution));
   if (backend != "cpu" && backend != "gl" && backend != "auto")
     throw OptionError("backend: unknown backend '" + backend + "' (valid: cpu, gl, auto)");
+  if (cast_rounds < 0 || cast_rounds > 100)
+    throw OptionError("cast_rounds: must be in 0..100, got " + std::to_string(cast_rounds));
   if (contact_rounds < 0 || contact_rounds > 100)
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
@@ -306,6 +396,13 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     }
   };
   settle_with_contact();
+  nlohmann::json casts = nlohmann::json::array();
+  const double end_radius = options.placement.region_radius * muscle_length(muscle);
+  for (int round = 0; round < options.cast_rounds; ++round) {
+    casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius));
+    settle_with_contact();
+  }
+  report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
   report.containment = {{"rounds", rounds}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
   report.settle_seconds = since(stage);

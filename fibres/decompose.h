@@ -66,6 +66,9 @@ struct DecomposeOptions {
   /// Compute backend of the settle: "cpu", "gl" (OpenGL compute, Verlet only) or "auto"
   /// (the GPU only for a Verlet settle of a large lattice on a hardware device) (default cpu).
   std::string backend = "cpu";
+  int cast_rounds = 2;          ///< rounds of "fibre ends cast onto the surface under the layer
+                                ///< next to them, settle again" (step 6b), >= 0 (default 2;
+                                ///< 0: the ends stay where the sphere maps place them)
   int contact_rounds = 4;       ///< containment rounds (step 6), >= 0 (default 4)
   double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
                                 ///< spacings, (0, 1) (default 0.3)

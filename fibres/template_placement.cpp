@@ -349,17 +349,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   auto place = [&](double so, double si) {
     constexpr int kBandBins = 512;
     Cumulative muscle_band(kBandBins), template_band(kBandBins);
-    for (std::size_t f = 0; f < muscle.triangles.size(); ++f) {
-      const Triangle& t = muscle.triangles[f];
-      const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
-      const double phi = azimuth(c);
-      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
-      const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
-      const double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
-                                 .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
-                                 .norm();
-      muscle_band.add(u, a);
-    }
     for (const Triangle& t : lattice.surface) {
       const Vec3 c =
           (template_pole_vector(index_coords(lattice, t[0])) + template_pole_vector(index_coords(lattice, t[1])) +
@@ -371,7 +360,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       const double a = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]).norm();
       template_band.add(u, a);
     }
-    muscle_band.finish();
     template_band.finish();
 
     // Twist along the band: at each level u the template's r axis turns towards the muscle's
@@ -402,6 +390,33 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       level_x[b] += w * std::cos(phi);
       level_y[b] += w * std::sin(phi);
     }
+    // The muscle's band measure: surface area, or area per level circumference (length along
+    // the muscle: rings then sit at even steps along it, which keeps the lattice's layers flat
+    // where a muscle narrows to a tendon).
+    std::vector<double> level_radius(kLevels, 0.0);
+    for (std::size_t v = 0; v < nv; ++v)
+      if (level_of[v] >= 0)
+        level_radius[static_cast<std::size_t>(level_of[v])] +=
+            vertex_area[v] * (muscle.positions[v] - level_centre[static_cast<std::size_t>(level_of[v])]).norm();
+    for (int b = 0; b < kLevels; ++b)
+      if (level_area[static_cast<std::size_t>(b)] > 0.0) level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
+    for (std::size_t f = 0; f < muscle.triangles.size(); ++f) {
+      const Triangle& t = muscle.triangles[f];
+      const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
+      const double phi = azimuth(c);
+      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
+      const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
+      double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
+                           .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
+                           .norm();
+      if (options.band_by_length && u >= 0.0 && u <= 1.0) {
+        const double r = level_radius[static_cast<std::size_t>(std::min(kLevels - 1, static_cast<int>(u * kLevels)))];
+        a = r > 0.0 ? a / r : 0.0;
+      }
+      muscle_band.add(u, a);
+    }
+    muscle_band.finish();
+
     std::vector<double> level_twist(kLevels, twist);
     double previous = twist;
     for (int b = 0; b < kLevels; ++b) {

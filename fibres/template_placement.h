@@ -61,6 +61,10 @@ struct PlacementOptions {
   double max_face_depth = 0.1;
   /// Largest number of shrinking rounds (default 12; 0.8^12 = 0.07 of the region's radius).
   int face_shrink_rounds = 12;
+  /// Lateral rings of the lattice go to even steps of length along the muscle (area per level
+  /// circumference) when true, to even steps of surface area when false (default true: keeps the
+  /// layers flat where the muscle narrows to a tendon).
+  bool band_by_length = true;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
