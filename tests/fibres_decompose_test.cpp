@@ -182,3 +182,37 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   const Polylines back = read_polylines(out);
   CHECK(back.lines.size() == 100);
 }
+
+TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resumable", "[fibres][cli][batch]") {
+  test::TempDir dir;
+  const std::filesystem::path in = dir.path() / "in";
+  std::filesystem::create_directories(in / "sub");
+  write_triangle_mesh((in / "capsule.off").string(), capsule());
+  std::ofstream((in / "sub" / "broken.off").string()) << "not a mesh\n";
+  const std::filesystem::path out = dir.path() / "out";
+  const std::string cmd = test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
+  // The broken mesh fails, the batch goes on and says so with the quality code.
+  CHECK(test::run_command(cmd + " 2>/dev/null") == 19);
+  CHECK(std::filesystem::exists(out / "capsule.vtk"));
+  CHECK(std::filesystem::exists(out / "capsule.report.json"));
+  CHECK(std::filesystem::exists(out / "sub" / "broken.report.json"));
+  CHECK_FALSE(std::filesystem::exists(out / "sub" / "broken.vtk"));
+  std::ifstream summary((out / "summary.csv").string());
+  std::string header, a, b, extra;
+  std::getline(summary, header);
+  std::getline(summary, a);
+  std::getline(summary, b);
+  CHECK(header == "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,error");
+  CHECK(a.rfind("capsule,", 0) == 0);
+  CHECK(b.rfind("sub/broken,failed,5,", 0) == 0);
+  CHECK_FALSE(std::getline(summary, extra));
+  // Resumable: a second run redoes nothing (the fibre file keeps its time stamp).
+  const auto stamp = std::filesystem::last_write_time(out / "capsule.vtk");
+  CHECK(test::run_command(cmd + " 2>/dev/null") == 19);
+  CHECK(std::filesystem::last_write_time(out / "capsule.vtk") == stamp);
+  // A list file works as input too; a missing entry is a one-line error (code 3).
+  const std::string list = (dir.path() / "list.txt").string();
+  std::ofstream(list) << "# muscles\n" << (in / "capsule.off").string() << "\n" << (in / "nope.off").string() << "\n";
+  CHECK(test::run_command(test::program() + " -q batch " + list + " -o " + (dir.path() / "out2").string() +
+                          " 2>/dev/null") == 3);
+}

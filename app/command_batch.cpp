@@ -1,0 +1,314 @@
+// fascicle batch INPUT_DIR|LIST.txt -o OUT_DIR [--jobs N] [decompose options]: decomposes many
+// muscles, one `fascicle decompose` process per muscle (a crash, a hang or a failure of one muscle
+// cannot take the batch down), writes one report per muscle and a summary CSV, continues past
+// failures, skips muscles already done (resumable: every output is written atomically, so a batch
+// killed mid-run leaves only complete files), and draws a progress bar on a terminal.
+
+#include "app/commands.h"
+#include "geometry/atomic_file.h"
+#include "geometry/errors.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <unistd.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+namespace fascicle::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct BatchArgs {
+  std::string input, output, format = "vtk", landmarks = "none";
+  int jobs = 1;
+  double time_limit = 600.0;
+  bool force = false, keep_failed = false;
+  std::vector<std::string> forwarded;  // decompose options, passed through
+};
+
+struct Muscle {
+  std::string input, name;              // name: path relative to the input folder, no extension
+  std::string origin, insertion;        // landmark files, when used
+};
+
+struct Outcome {
+  std::string status = "not run", error;
+  int exit_code = -1;
+  double seconds = 0.0;
+  double inside_fraction = std::numeric_limits<double>::quiet_NaN(), coverage_p95 = inside_fraction,
+         attachment = inside_fraction;
+  long inverted_cells = -1;
+  bool skipped = false;
+};
+
+bool is_mesh(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".off" || ext == ".obj" || ext == ".stl" || ext == ".ply" || ext == ".vtk";
+}
+
+// Landmarks beside a mesh: the longest P such that the mesh's file name starts with P and both
+// P.origin.xyz and P.insertion.xyz exist in its folder.
+void find_landmarks(Muscle& m) {
+  const fs::path mesh(m.input);
+  std::string best;
+  for (const auto& entry : fs::directory_iterator(mesh.parent_path().empty() ? fs::path(".") : mesh.parent_path())) {
+    const std::string file = entry.path().filename().string();
+    const std::string suffix = ".origin.xyz";
+    if (file.size() <= suffix.size() || file.compare(file.size() - suffix.size(), suffix.size(), suffix) != 0) continue;
+    const std::string prefix = file.substr(0, file.size() - suffix.size());
+    if (mesh.filename().string().rfind(prefix, 0) != 0 || prefix.size() <= best.size()) continue;
+    if (!fs::exists(entry.path().parent_path() / (prefix + ".insertion.xyz"))) continue;
+    best = prefix;
+  }
+  if (best.empty()) return;
+  m.origin = (mesh.parent_path() / (best + ".origin.xyz")).string();
+  m.insertion = (mesh.parent_path() / (best + ".insertion.xyz")).string();
+}
+
+std::vector<Muscle> list_muscles(const BatchArgs& args) {
+  std::vector<Muscle> muscles;
+  const fs::path input(args.input);
+  if (!fs::exists(input)) throw InputError(ErrorCode::file_missing, args.input + ": no such file or folder");
+  if (fs::is_directory(input)) {
+    for (const auto& entry : fs::recursive_directory_iterator(input)) {
+      if (!entry.is_regular_file() || !is_mesh(entry.path())) continue;
+      fs::path rel = fs::relative(entry.path(), input);
+      muscles.push_back({entry.path().string(), (rel.parent_path() / rel.stem()).string(), "", ""});
+    }
+  } else {
+    std::ifstream in(input);
+    if (!in) throw InputError(ErrorCode::file_missing, args.input + ": cannot be opened");
+    std::string line;
+    int number = 0;
+    while (std::getline(in, line)) {
+      ++number;
+      const auto first = line.find_first_not_of(" \t\r");
+      if (first == std::string::npos || line[first] == '#') continue;
+      const auto last = line.find_last_not_of(" \t\r");
+      fs::path p = line.substr(first, last - first + 1);
+      if (p.is_relative()) p = input.parent_path() / p;
+      if (!fs::exists(p))
+        throw InputError(ErrorCode::file_missing, args.input + ":" + std::to_string(number) + ": " + p.string() +
+                                                      ": no such file");
+      muscles.push_back({p.string(), p.stem().string(), "", ""});
+    }
+  }
+  std::sort(muscles.begin(), muscles.end(), [](const Muscle& a, const Muscle& b) { return a.name < b.name; });
+  for (std::size_t i = 1; i < muscles.size(); ++i)
+    if (muscles[i].name == muscles[i - 1].name)
+      throw InputError(ErrorCode::malformed, args.input + ": two muscles would share the output name " + muscles[i].name);
+  if (muscles.empty()) throw InputError(ErrorCode::file_empty, args.input + ": no mesh files (off, obj, stl, ply, vtk)");
+  if (args.landmarks == "beside")
+    for (Muscle& m : muscles) find_landmarks(m);
+  return muscles;
+}
+
+// Runs `argv` with stdout/stderr to `log`, waits; returns the exit code (128 + signal).
+int run_process(const std::vector<std::string>& argv, const std::string& log) {
+  const pid_t pid = fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    FILE* f = std::fopen(log.c_str(), "w");
+    if (f) {
+      dup2(fileno(f), 1);
+      dup2(fileno(f), 2);
+    }
+    std::vector<char*> c;
+    for (const std::string& a : argv) c.push_back(const_cast<char*>(a.c_str()));
+    c.push_back(nullptr);
+    execv(c[0], c.data());
+    std::_Exit(127);
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+void read_outcome(const std::string& report_path, Outcome& o) {
+  std::ifstream in(report_path);
+  if (!in) return;
+  try {
+    const nlohmann::json r = nlohmann::json::parse(in);
+    o.status = r.value("status", "failed");
+    if (r.contains("error")) o.error = r["error"].get<std::string>();
+    if (r.contains("quality")) {
+      const auto& q = r["quality"];
+      o.inside_fraction = q.value("inside_fraction", o.inside_fraction);
+      o.inverted_cells = q.value("inverted_cells", -1L);
+      if (q.contains("coverage")) o.coverage_p95 = q["coverage"].value("p95", o.coverage_p95);
+      if (q.contains("attachment"))
+        o.attachment = std::max(q["attachment"].value("origin_max", 0.0), q["attachment"].value("insertion_max", 0.0));
+    }
+    if (r.contains("seconds") && r["seconds"].is_object()) o.seconds = r["seconds"].value("total", o.seconds);
+  } catch (const std::exception&) {
+    o.status = "failed";
+    o.error = "unreadable report";
+  }
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+  return out + "\"";
+}
+
+void write_summary(const std::string& path, const std::vector<Muscle>& muscles, const std::vector<Outcome>& outcomes) {
+  write_file_atomically(path, [&](std::ostream& out) {
+    out << std::setprecision(std::numeric_limits<double>::max_digits10);
+    out << "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,error\n";
+    for (std::size_t i = 0; i < muscles.size(); ++i) {
+      const Outcome& o = outcomes[i];
+      out << csv_field(muscles[i].name) << ',' << o.status << ',' << o.exit_code << ',' << o.seconds << ','
+          << o.inside_fraction << ',' << o.inverted_cells << ',' << o.coverage_p95 << ',' << o.attachment << ','
+          << csv_field(o.error) << '\n';
+    }
+  });
+}
+
+std::string self_path() {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw Error(ErrorCode::internal, "batch: cannot find the fascicle program (/proc/self/exe)");
+  return p.string();
+}
+
+void run_batch(const BatchArgs& args) {
+  if (args.jobs < 1 || args.jobs > 256) throw OptionError("jobs: must be in 1..256, got " + std::to_string(args.jobs));
+  if (!(args.time_limit >= 0.0)) throw OptionError("time-limit: must be >= 0");
+  const std::vector<Muscle> muscles = list_muscles(args);
+  fs::create_directories(args.output);
+  const std::string program = self_path();
+  std::vector<Outcome> outcomes(muscles.size());
+  std::atomic<std::size_t> next{0};
+  std::atomic<int> done{0}, failed{0}, skipped{0};
+  std::mutex mutex;
+  const bool tty = isatty(2) != 0;
+  const auto start = std::chrono::steady_clock::now();
+  auto progress = [&](const std::string& last) {
+    if (!tty) return;
+    const int width = 30, d = done.load();
+    const int filled = static_cast<int>(width * d / std::max<std::size_t>(1, muscles.size()));
+    std::fprintf(stderr, "\r[%s%s] %d/%zu done, %d failed, %d skipped  %-40.40s", std::string(filled, '#').c_str(),
+                 std::string(width - filled, '.').c_str(), d, muscles.size(), failed.load(), skipped.load(),
+                 last.c_str());
+    std::fflush(stderr);
+  };
+  auto worker = [&]() {
+    for (std::size_t i = next++; i < muscles.size(); i = next++) {
+      const Muscle& m = muscles[i];
+      Outcome& o = outcomes[i];
+      const fs::path base = fs::path(args.output) / m.name;
+      fs::create_directories(base.parent_path());
+      const std::string fibres = base.string() + "." + args.format;
+      const std::string report = base.string() + ".report.json";
+      if (!args.force && fs::exists(report)) {
+        read_outcome(report, o);
+        o.skipped = true;
+        o.exit_code = o.status == "ok" ? 0 : -1;
+        ++skipped;
+      } else {
+        std::vector<std::string> argv = {program, "-q", "decompose", m.input, "-o", fibres, "--report", report};
+        if (args.time_limit > 0.0) argv.insert(argv.begin() + 1, {"--time-limit", std::to_string(args.time_limit)});
+        if (!m.origin.empty()) argv.insert(argv.end(), {"--origin", m.origin, "--insertion", m.insertion});
+        if (args.keep_failed) argv.push_back("--keep-failed");
+        argv.insert(argv.end(), args.forwarded.begin(), args.forwarded.end());
+        const auto t0 = std::chrono::steady_clock::now();
+        o.exit_code = run_process(argv, base.string() + ".log");
+        o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        read_outcome(report, o);
+        if (o.exit_code == 0) o.status = "ok";
+        else if (o.status == "ok" || o.status == "not run") o.status = "failed";
+        if (o.error.empty() && o.exit_code != 0) {
+          std::ifstream log(base.string() + ".log");
+          std::string line, last;
+          while (std::getline(log, line))
+            if (!line.empty()) last = line;
+          o.error = last.empty() ? "exit code " + std::to_string(o.exit_code) : last;
+        }
+        if (!fs::exists(report)) {
+          // The process died before it could write its report (a signal, the time limit): record
+          // the failure so that a resumed batch does not retry it forever; --force retries.
+          nlohmann::json r = {{"status", "failed"}, {"error", o.error}, {"exit_code", o.exit_code}};
+          write_file_atomically(report, [&](std::ostream& out) { out << r.dump(2) << '\n'; });
+        }
+      }
+      if (o.status != "ok") ++failed;
+      ++done;
+      std::lock_guard<std::mutex> lock(mutex);
+      write_summary((fs::path(args.output) / "summary.csv").string(), muscles, outcomes);
+      progress(m.name);
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 0; t < args.jobs; ++t) threads.emplace_back(worker);
+  for (std::thread& t : threads) t.join();
+  if (tty) std::fprintf(stderr, "\n");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  spdlog::info("batch: {} muscles, {} ok, {} failed, {} skipped (already done) in {:.1f} s; summary in {}",
+               muscles.size(), muscles.size() - static_cast<std::size_t>(failed.load()), failed.load(), skipped.load(),
+               seconds, (fs::path(args.output) / "summary.csv").string());
+  if (failed.load() > 0)
+    throw Error(ErrorCode::quality, "batch: " + std::to_string(failed.load()) + " of " +
+                                        std::to_string(muscles.size()) + " muscles failed; see " +
+                                        (fs::path(args.output) / "summary.csv").string());
+}
+
+}  // namespace
+
+void add_batch_command(CLI::App& app) {
+  auto args = std::make_shared<BatchArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "batch", "Decompose every muscle of a folder (recursively) or a list file, one process per muscle; resumable");
+  cmd->add_option("input", args->input, "Folder of meshes (searched recursively) or a text file with one mesh per line")
+      ->required();
+  cmd->add_option("-o,--output", args->output, "Output folder: fibres, report and log per muscle, summary.csv")
+      ->required();
+  cmd->add_option("--jobs", args->jobs, "Muscles decomposed at once")->capture_default_str();
+  cmd->add_option("--format", args->format, "Fibre file format: vtk, vtp, obj, csv")
+      ->check(CLI::IsMember({"vtk", "vtp", "obj", "csv"}))
+      ->capture_default_str();
+  cmd->add_option("--landmarks", args->landmarks,
+                  "none (automatic areas) or beside (P.origin.xyz and P.insertion.xyz next to a mesh whose name starts "
+                  "with P)")
+      ->check(CLI::IsMember({"none", "beside"}))
+      ->capture_default_str();
+  cmd->add_option("--muscle-time-limit", args->time_limit, "Seconds per muscle before it is stopped (0: none)")
+      ->capture_default_str();
+  cmd->add_flag("--force", args->force, "Redo muscles that already have a report");
+  cmd->add_flag("--keep-failed", args->keep_failed, "Write fibres even for muscles that fail the check");
+  // Decompose options, passed through unchanged.
+  for (const char* name : {"--template", "--fibres", "--resolution", "--model", "--solver", "--tolerance",
+                           "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest"}) {
+    auto value = std::make_shared<std::string>();
+    cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
+        ->each([args, name](const std::string& v) {
+          args->forwarded.push_back(name);
+          args->forwarded.push_back(v);
+        });
+    // keep the shared_ptr alive with the command
+    static std::vector<std::shared_ptr<std::string>> keep;
+    keep.push_back(value);
+  }
+  cmd->callback([args] { run_batch(*args); });
+}
+
+}  // namespace fascicle::app
