@@ -91,6 +91,9 @@ std::vector<Muscle> list_muscles(const BatchArgs& args) {
       fs::path rel = fs::relative(entry.path(), input);
       muscles.push_back({entry.path().string(), (rel.parent_path() / rel.stem()).string(), "", ""});
     }
+  } else if (is_mesh(input)) {
+    // One mesh: a batch of one (the unit a cluster task runs).
+    muscles.push_back({input.string(), input.stem().string(), "", ""});
   } else {
     std::ifstream in(input);
     if (!in) throw InputError(ErrorCode::file_missing, args.input + ": cannot be opened");

@@ -12,6 +12,7 @@ void add_bench_command(CLI::App& app) {
   fascicle::bench::add_springs_bench(*bench);
   fascicle::bench::add_sphere_bench(*bench);
   fascicle::bench::add_gpu_bench(*bench);
+  fascicle::bench::add_decompose_bench(*bench);
 }
 
 }  // namespace fascicle::app

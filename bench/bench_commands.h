@@ -18,5 +18,8 @@ void add_springs_bench(CLI::App& bench);
 /// `fascicle bench gpu [--sizes ...] [--json FILE]`: GPU spring solvers through OpenGL
 /// (bench_gpu.cpp); an error in a build without OpenGL.
 void add_gpu_bench(CLI::App& bench);
+/// `fascicle bench decompose [--json FILE]`: decomposition speed by stage, every template on the
+/// LHDL muscles with their landmarks, the corpus with repair (bench_decompose.cpp).
+void add_decompose_bench(CLI::App& bench);
 
 }  // namespace fascicle::bench

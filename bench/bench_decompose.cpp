@@ -1,0 +1,187 @@
+// fascicle bench decompose: speed of the decomposition of a repaired muscle by stage, every
+// template on the LHDL muscles with their landmark files, and the whole corpus with repair.
+
+#include "bench/bench_commands.h"
+
+#include "fibres/decompose.h"
+#include "geometry/atomic_file.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/read_points.h"
+#include "repair/repair.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+namespace fascicle::bench {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct DecomposeBenchArgs {
+  std::string data = FASCICLE_DATA_DIR;
+  std::string muscle = "muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk";
+  std::string json;
+  int repeat = 5;
+  bool skip_speed = false, skip_templates = false, skip_corpus = false;
+};
+
+double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+nlohmann::json quality_json(const CheckReport& q) {
+  return {{"pass", q.pass},
+          {"inside_fraction", q.inside_fraction},
+          {"inverted_cells", q.inverted_cells},
+          {"coverage_p95", q.coverage.p95},
+          {"attachment", std::max(q.attachment.origin_max, q.attachment.insertion_max)}};
+}
+
+void print_quality(const std::string& name, const std::string& status, const CheckReport& q, double seconds) {
+  std::printf("%-52s %-8s %8.6f %6ld %7.3f %8.4f %8.3f\n", name.c_str(), status.c_str(), q.inside_fraction,
+              q.inverted_cells, q.coverage.p95, std::max(q.attachment.origin_max, q.attachment.insertion_max), seconds);
+}
+
+void run_decompose_bench(const DecomposeBenchArgs& args) {
+  nlohmann::json out = {{"speed", nlohmann::json::array()}, {"templates", nlohmann::json::array()},
+                        {"corpus", nlohmann::json::array()}};
+  const fs::path data(args.data);
+  if (!args.skip_speed) {
+    const std::string path = (data / args.muscle).string();
+    const TriangleMesh muscle = repair_mesh(read_polygon_soup(path)).mesh;
+    const fs::path tmp = fs::temp_directory_path() / "fascicle-bench-decompose.vtk";
+    std::vector<double> wall, cpu, sphere, placement, settle, check, write;
+    Decomposition d;
+    for (int r = 0; r < args.repeat; ++r) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const double c0 = cpu_seconds();
+      d = decompose_repaired(muscle, Landmarks{}, DecomposeOptions{});
+      const auto t1 = std::chrono::steady_clock::now();
+      write_polylines(tmp.string(), d.fibres);
+      write.push_back(since(t1));
+      wall.push_back(since(t0));
+      cpu.push_back(cpu_seconds() - c0);
+      sphere.push_back(d.report.sphere_seconds);
+      placement.push_back(d.report.placement_seconds);
+      settle.push_back(d.report.settle_seconds);
+      check.push_back(d.report.check_seconds);
+    }
+    fs::remove(tmp);
+    const double without_check = median(wall) - median(check);
+    std::printf("decompose %s: %zu vertices, %zu triangles, 100 fibres x 15 points, median of %d\n",
+                fs::path(args.muscle).filename().string().c_str(), muscle.positions.size(), muscle.triangles.size(),
+                args.repeat);
+    std::printf("  sphere %.3f s, placement %.3f s, settle %.3f s, output %.3f s, check %.3f s; total %.3f s "
+                "(cpu %.3f s), without the check %.3f s\n",
+                median(sphere), median(placement), median(settle), median(write), median(check), median(wall),
+                median(cpu), without_check);
+    out["speed"].push_back({{"muscle", args.muscle},
+                            {"vertices", muscle.positions.size()},
+                            {"triangles", muscle.triangles.size()},
+                            {"repeat", args.repeat},
+                            {"median_seconds", median(wall)},
+                            {"median_cpu_seconds", median(cpu)},
+                            {"median_without_check_seconds", without_check},
+                            {"sphere_seconds", median(sphere)},
+                            {"placement_seconds", median(placement)},
+                            {"settle_seconds", median(settle)},
+                            {"output_seconds", median(write)},
+                            {"check_seconds", median(check)},
+                            {"quality", quality_json(d.report.quality)}});
+  }
+  std::printf("%-52s %-8s %8s %6s %7s %8s %8s\n", "muscle", "status", "inside", "invert", "cov95", "attach", "seconds");
+  if (!args.skip_templates) {
+    const fs::path lhdl = data / "muscles" / "lhdl";
+    for (const char* name : {"LHDL_R_M081_GluteusMaximus", "LHDL_R_M082_GluteusMedius", "LHDL_R_M090_Psoas",
+                             "LHDL_R_M091_Iliacus"}) {
+      fs::path mesh;
+      for (const auto& e : fs::directory_iterator(lhdl))
+        if (e.path().filename().string().rfind(std::string(name) + "_smooth", 0) == 0) mesh = e.path();
+      if (mesh.empty()) continue;
+      Landmarks landmarks;
+      landmarks.origin_source = (lhdl / (std::string(name) + ".origin.xyz")).string();
+      landmarks.insertion_source = (lhdl / (std::string(name) + ".insertion.xyz")).string();
+      landmarks.origin = read_points(landmarks.origin_source);
+      landmarks.insertion = read_points(landmarks.insertion_source);
+      for (springs::TemplateKind kind : springs::all_template_kinds()) {
+        DecomposeOptions options;
+        options.kind = kind;
+        const std::string label = std::string(name) + " " + springs::template_name(kind);
+        const auto t0 = std::chrono::steady_clock::now();
+        try {
+          const Decomposition d = decompose(read_polygon_soup(mesh.string()), landmarks, options);
+          print_quality(label, d.report.status, d.report.quality, since(t0));
+          out["templates"].push_back({{"muscle", name}, {"template", springs::template_name(kind)},
+                                      {"status", d.report.status}, {"seconds", since(t0)},
+                                      {"quality", quality_json(d.report.quality)}});
+        } catch (const Error& e) {
+          std::printf("%-52s %-8s %s\n", label.c_str(), "error", e.what());
+          out["templates"].push_back({{"muscle", name}, {"template", springs::template_name(kind)},
+                                      {"status", "error"}, {"error", e.what()}, {"seconds", since(t0)}});
+        }
+      }
+    }
+  }
+  if (!args.skip_corpus) {
+    std::vector<fs::path> meshes;
+    for (const auto& e : fs::recursive_directory_iterator(data / "muscles")) {
+      const std::string ext = e.path().extension().string();
+      if (e.is_regular_file() && (ext == ".vtk" || ext == ".stl" || ext == ".off" || ext == ".obj" || ext == ".ply"))
+        meshes.push_back(e.path());
+    }
+    std::sort(meshes.begin(), meshes.end());
+    const auto start = std::chrono::steady_clock::now();
+    int ok = 0;
+    for (const fs::path& mesh : meshes) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::string label = mesh.filename().string();
+      try {
+        const Decomposition d = decompose(read_polygon_soup(mesh.string()), Landmarks{}, DecomposeOptions{});
+        print_quality(label, d.report.status, d.report.quality, since(t0));
+        ok += d.report.status == "ok";
+        out["corpus"].push_back({{"muscle", label}, {"status", d.report.status}, {"seconds", since(t0)},
+                                 {"repair_seconds", d.report.repair_seconds}, {"quality", quality_json(d.report.quality)}});
+      } catch (const Error& e) {
+        std::printf("%-52s %-8s %s\n", label.c_str(), "error", e.what());
+        out["corpus"].push_back({{"muscle", label}, {"status", "error"}, {"error", e.what()}, {"seconds", since(t0)}});
+      }
+    }
+    std::printf("corpus: %d of %zu pass every criterion; %.1f s for all, one after another, with repair\n", ok,
+                meshes.size(), since(start));
+    out["corpus_seconds"] = since(start);
+    out["corpus_pass"] = ok;
+  }
+  if (!args.json.empty())
+    write_file_atomically(args.json, [&](std::ostream& s) { s << out.dump(2) << '\n'; });
+}
+
+}  // namespace
+
+void add_decompose_bench(CLI::App& bench) {
+  auto args = std::make_shared<DecomposeBenchArgs>();
+  CLI::App* cmd = bench.add_subcommand("decompose", "Decomposition speed by stage; templates on LHDL; the corpus");
+  cmd->add_option("--data", args->data, "Data folder (../shared/data)")->capture_default_str();
+  cmd->add_option("--muscle", args->muscle, "Muscle for the speed run, relative to --data")->capture_default_str();
+  cmd->add_option("--repeat", args->repeat, "Repetitions of the speed run (median)")->capture_default_str();
+  cmd->add_option("--json", args->json, "Write the records as JSON");
+  cmd->add_flag("--skip-speed", args->skip_speed, "Skip the speed run");
+  cmd->add_flag("--skip-templates", args->skip_templates, "Skip the templates on the LHDL muscles");
+  cmd->add_flag("--skip-corpus", args->skip_corpus, "Skip the corpus run");
+  cmd->callback([args] { run_decompose_bench(*args); });
+}
+
+}  // namespace fascicle::bench
