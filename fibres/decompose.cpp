@@ -348,14 +348,18 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   int pinned = 0, rounds = 0;
   nlohmann::json solves = nlohmann::json::array();
   std::vector<int> outside;
-  auto settle_with_contact = [&]() {
+  // The settles before the last round of fibre ends only need to be close: the ends move after
+  // them anyway.
+  springs::SettleOptions rough = options.settle;
+  if (rough.tolerance > 0.0) rough.tolerance = std::max(rough.tolerance, 1e-4);
+  auto settle_with_contact = [&](const springs::SettleOptions& settle_options) {
     for (;;) {
       springs::SettleReport settled;
       if (options.backend == "gl") {
   #ifdef FASCICLE_HAVE_SHADERS
         const shaders::GlContext context;
         shaders::GpuSettleOptions gpu;
-        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, options.settle, gpu, &shape);
+        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, settle_options, gpu, &shape);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
   #else
@@ -363,7 +367,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
                                     "was built); use --backend cpu");
   #endif
       } else {
-        settled = springs::settle(system, options.settle, &shape);
+        settled = springs::settle(system, settle_options, &shape);
       }
       solves.push_back(settle_json(settled));
       outside = outside_free_points(system, query);
@@ -395,12 +399,12 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       }
     }
   };
-  settle_with_contact();
+  settle_with_contact(options.cast_rounds > 0 ? rough : options.settle);
   nlohmann::json casts = nlohmann::json::array();
   const double end_radius = options.placement.region_radius * muscle_length(muscle);
   for (int round = 0; round < options.cast_rounds; ++round) {
     casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius));
-    settle_with_contact();
+    settle_with_contact(round + 1 < options.cast_rounds ? rough : options.settle);
   }
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
@@ -449,7 +453,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
 
   // Check.
   stage = Clock::now();
-  report.quality = check_fibres(out.fibres, muscle, areas, options.check);
+  report.quality = check_fibres(out.fibres, muscle, query, areas, options.check);
   report.check_seconds = since(stage);
   report.status = report.quality.pass ? "ok" : "failed";
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";
