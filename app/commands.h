@@ -13,5 +13,6 @@ void add_convert_command(CLI::App& app);  // fascicle convert
 void add_bench_command(CLI::App& app);    // fascicle bench ...
 void add_settle_command(CLI::App& app);   // fascicle settle
 void add_sphere_command(CLI::App& app);   // fascicle sphere
+void add_check_command(CLI::App& app);    // fascicle check
 
 }  // namespace fascicle::app
