@@ -45,6 +45,9 @@ struct UniformGrid {
     g.h = std::cbrt(extent.prod() / std::max(1.0, target));
     // A flat box (zero extent on an axis) gives h = 0: fall back to the largest extent.
     if (!(g.h > 0.0) || !std::isfinite(g.h)) g.h = std::max(extent.maxCoeff() / std::cbrt(target), 1e-300);
+    // At most 4096 cells per axis, and still covering the box (a needle-thin box gets
+    // fewer, longer cells rather than a grid that ends inside it).
+    g.h = std::max(g.h, extent.maxCoeff() / 4096.0);
     for (int a = 0; a < 3; ++a)
       g.n[a] = std::max(1, std::min(4096, static_cast<int>(std::ceil(extent[a] / g.h))));
     return g;
@@ -345,7 +348,8 @@ void CheckOptions::validate() const {
     std::snprintf(buffer, sizeof(buffer), "%g", value);
     throw OptionError("CheckOptions::" + field + " must be " + rule + " (got " + buffer + ")");
   };
-  if (coverage_samples < 1) bad("coverage_samples", coverage_samples, "at least 1");
+  if (coverage_samples < 1 || coverage_samples > 100'000'000)
+    bad("coverage_samples", coverage_samples, "in [1, 100000000]");
   if (!(end_tolerance >= 0.0) || !std::isfinite(end_tolerance)) bad("end_tolerance", end_tolerance, ">= 0 and finite");
   if (!(min_inside_fraction >= 0.0 && min_inside_fraction <= 1.0))
     bad("min_inside_fraction", min_inside_fraction, "in [0, 1]");

@@ -58,7 +58,7 @@ struct CheckOptions {
   /// How many outside points the report lists (default 10); the count covers all of them.
   int outside_listed = 10;
 
-  /// Throws OptionError naming the first field out of range (coverage_samples < 1,
+  /// Throws OptionError naming the first field out of range (coverage_samples not in [1, 1e8],
   /// end_tolerance < 0, min_inside_fraction outside [0, 1], max_inverted_cells < 0,
   /// max_coverage_p95 or max_attachment <= 0 or not finite, outside_listed < 0).
   void validate() const;
