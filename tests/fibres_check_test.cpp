@@ -16,6 +16,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 using namespace fascicle;
@@ -132,6 +133,36 @@ TEST_CASE("a fibre point outside the muscle fails the inside criterion", "[fibre
   CHECK(check_fibres(on_surface, box, areas).outside == 1);
 }
 
+TEST_CASE("the grid-accelerated inside test agrees with the exact test point by point", "[fibres][check]") {
+  // Random points in and around a sphere, many of them in grid cells near the surface.
+  const TriangleMesh sphere = make_icosphere(3, 10.0);
+  const SurfaceQuery query(sphere);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-10.5, 10.5);
+  Polylines fibres;
+  long expected_outside = 0;
+  for (int f = 0; f < 400; ++f) {
+    std::vector<Vec3> line;
+    for (int k = 0; k < 6; ++k) {
+      line.emplace_back(u(rng), u(rng), u(rng));
+      if (query.side(line.back()) != Side::inside) ++expected_outside;
+    }
+    fibres.lines.push_back(std::move(line));
+  }
+  Attachments areas = automatic_attachments(sphere);
+  CheckOptions options;
+  options.end_tolerance = 0.0;  // end points judged like the others
+  options.coverage_samples = 1000;
+  options.outside_listed = 100000;
+  const CheckReport report = check_fibres(fibres, sphere, query, areas, options);
+  REQUIRE(expected_outside > 100);
+  CHECK(report.outside == expected_outside);
+  for (const OutsidePoint& o : report.outside_examples) {
+    CHECK(query.side(fibres.lines[static_cast<std::size_t>(o.fibre)][static_cast<std::size_t>(o.point)]) != Side::inside);
+    CHECK(o.distance == Approx(query.closest_point(o.position).distance));
+  }
+}
+
 TEST_CASE("fibre ends may lie on or just outside the surface within the end tolerance", "[fibres][check]") {
   const TriangleMesh box = long_box(2);
   const double diagonal = bounding_box(box.positions).diagonal();
@@ -150,7 +181,7 @@ TEST_CASE("fibre ends may lie on or just outside the surface within the end tole
   CHECK(check_fibres(fibres, box, areas, wide).outside == 0);
 }
 
-TEST_CASE("a folded lattice has inverted cells; a mirrored one does not", "[fibres][check]") {
+TEST_CASE("a folded lattice has inverted cells and a mirrored one has none", "[fibres][check]") {
   const TriangleMesh box = long_box(4);
   Polylines fibres = straight_lattice(4, 11);
   const Attachments areas = areas_for(box, fibres);
@@ -308,7 +339,7 @@ TEST_CASE("bad options and inputs are refused", "[fibres][check]") {
   CHECK_THROWS_AS(check_fibres(fibres, box, empty), InputError);
 }
 
-TEST_CASE("fascicle check: table, --json, --report, landmarks, --strict and errors", "[fibres][check][cli]") {
+TEST_CASE("fascicle check prints a table or JSON and writes the report and exits 19 with --strict", "[fibres][check][cli]") {
   TempDir dir;
   const TriangleMesh box = long_box(3);
   Polylines good = straight_lattice(3, 9);

@@ -90,7 +90,7 @@ const char* const kVtp = R"(<?xml version="1.0"?>
 
 }  // namespace
 
-TEST_CASE("polylines round-trip exactly through .vtk, .vtp, .obj and .csv", "[geometry][io][polylines]") {
+TEST_CASE("polylines round-trip exactly through vtk vtp obj and csv", "[geometry][io][polylines]") {
   TempDir dir;
   const Polylines lines = awkward_fibres();
   for (const std::string ext : {"vtk", "vtp", "obj", "csv", "VTP", "Csv"}) {
@@ -121,7 +121,7 @@ TEST_CASE("polylines round-trip exactly through .vtk, .vtp, .obj and .csv", "[ge
   }
 }
 
-TEST_CASE("CSV: header, one row per point, r and s from the lattice arrays or the fibre index", "[geometry][io][polylines]") {
+TEST_CASE("CSV has one row per point with r and s from the lattice arrays or the fibre index", "[geometry][io][polylines]") {
   TempDir dir;
   Polylines lines;
   lines.lines = {{Vec3(0, 0, 0), Vec3(1, 0, 0)}, {Vec3(0, 1, 0), Vec3(0.5, 1, 0), Vec3(1, 1, 0)}};
@@ -144,7 +144,7 @@ TEST_CASE("CSV: header, one row per point, r and s from the lattice arrays or th
   CHECK(find(back, "fibre_s")->values == std::vector<double>{0, 2});
 }
 
-TEST_CASE("VTP: cell data slice of the lines, skipped arrays, entities", "[geometry][io][polylines]") {
+TEST_CASE("VTP keeps the cell data of the lines and skips other arrays", "[geometry][io][polylines]") {
   TempDir dir;
   write_text(dir.file("a.vtp"), kVtp);
   const Polylines lines = read_polylines(dir.file("a.vtp"));
