@@ -9,6 +9,7 @@ packages=(
   libcgal-dev libgmp-dev libmpfr-dev
   libeigen3-dev libboost-dev libtbb-dev
   libglew-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
+  libpng-dev
   catch2 libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
 )
 

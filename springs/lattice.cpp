@@ -136,7 +136,13 @@ const std::vector<std::array<int, 3>>& half_offsets(SpringModel model) {
 }
 
 void LatticeOptions::validate() const {
-  if (fibres < 4)
+  if (nr > 0 || ns > 0) {
+    if (nr < 2 || ns < 2 || nr > 100'000 || ns > 100'000)
+      throw OptionError("lattice split: nr and ns must both be in 2..100000, got " + std::to_string(nr) + " x " +
+                        std::to_string(ns));
+    if (static_cast<double>(nr) * ns * resolution > 2e8)
+      throw OptionError("nr x ns x resolution: above the limit of 2e8 points");
+  } else if (fibres < 4)
     throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
   if (fibres > 4'000'000)
     throw OptionError("fibres: at most 4000000, got " + std::to_string(fibres));
@@ -162,7 +168,8 @@ std::array<int, 2> near_square_split(int fibres) {
 
 Lattice build_lattice(const LatticeOptions& options) {
   options.validate();
-  const auto split = near_square_split(options.fibres);
+  const auto split = (options.nr > 0 && options.ns > 0) ? std::array<int, 2>{options.nr, options.ns}
+                                                         : near_square_split(options.fibres);
   Lattice lattice;
   lattice.nx = split[0];
   lattice.ny = split[1];

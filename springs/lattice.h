@@ -32,6 +32,9 @@ const std::vector<std::array<int, 3>>& half_offsets(SpringModel model);
 struct LatticeOptions {
   TemplateKind kind = TemplateKind::parallel;  ///< template family (default parallel)
   int fibres = 100;                     ///< fibre count N, split nr x ns near-square (default 100)
+  /// Explicit split: when both are > 0 (each >= 2) the lattice has nr x ns lines and `fibres` is
+  /// ignored (default 0, 0: the near-square split of `fibres`).
+  int nr = 0, ns = 0;
   int resolution = 20;                  ///< points per fibre, >= 2 (default 20)
   SpringModel model = SpringModel::model6;  ///< connectivity (default model-6)
   double density = 1.1;  ///< mass per unit template volume; mass per point = density V / #points

@@ -1,0 +1,139 @@
+// fascicle decompose MUSCLE -o FIBRES [options]: the whole job (fibres/decompose.h): repair,
+// sphere map, alignment of the attachment areas, location of the template's surface, settle of
+// the interior, fibres out (vtk, vtp, obj, csv), checked.
+
+#include "app/commands.h"
+#include "app/report_file.h"
+#include "fibres/decompose.h"
+#include "geometry/atomic_file.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/read_points.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <memory>
+
+namespace fascicle::app {
+
+namespace {
+
+struct DecomposeArgs {
+  std::string input, output, report, origin, insertion, repaired_output;
+  std::string rest = "tension";
+  std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
+  int model = 6;
+  bool keep_failed = false;
+  DecomposeOptions options;
+};
+
+void run_decompose(const DecomposeArgs& args) {
+  DecomposeOptions options = args.options;
+  options.kind = springs::parse_template_kind(args.kind);
+  options.model = springs::parse_spring_model(args.model);
+  options.settle.solver = springs::parse_solver_kind(args.solver);
+  options.sphere.method = sphere_method_from_string(args.sphere_method);
+  options.backend = args.backend;
+  options.rest = parse_rest_shape(args.rest);
+  options.validate();
+  if (args.origin.empty() != args.insertion.empty())
+    throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
+  check_not_same_file(args.input, args.output);
+  if (!args.report.empty()) check_not_same_file(args.input, args.report);
+  if (!args.repaired_output.empty()) check_not_same_file(args.input, args.repaired_output);
+
+  const PolygonSoup soup = read_polygon_soup(args.input);
+  spdlog::info("read {}: {} points, {} faces", args.input, soup.points.size(), soup.polygons.size());
+  Landmarks landmarks;
+  if (!args.origin.empty()) {
+    landmarks.origin = read_points(args.origin);
+    landmarks.insertion = read_points(args.insertion);
+    landmarks.origin_source = args.origin;
+    landmarks.insertion_source = args.insertion;
+  }
+  nlohmann::json report = {{"input_file", args.input}, {"output_file", args.output}};
+  try {
+    const Decomposition result = decompose(soup, landmarks, options);
+    report.update(result.report.to_json());
+    const CheckReport& q = result.report.quality;
+    if (!q.pass) {
+      if (!args.report.empty()) write_json_report(args.report, report);
+      if (args.keep_failed) write_polylines(args.output, result.fibres);
+      std::string failed;
+      for (const std::string& f : q.failed) failed += (failed.empty() ? "" : ", ") + f;
+      throw Error(ErrorCode::quality, "decompose: the fibres fail the check (" + failed + ")" + std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
+                                          (args.report.empty() ? "" : ", details in " + args.report));
+    }
+    if (!args.repaired_output.empty()) write_triangle_mesh(args.repaired_output, result.muscle);
+    write_polylines(args.output, result.fibres);
+    if (!args.report.empty()) write_json_report(args.report, report);
+    const DecomposeReport& r = result.report;
+    spdlog::info("wrote {}: {} fibres x {} points; inside {:.6g}, inverted cells {}, coverage p95 {:.3g}, "
+                 "attachment {:.3g}/{:.3g} of the length ({:.3f} s: repair {:.3f}, sphere {:.3f}, placement {:.3f}, "
+                 "settle {:.3f}, check {:.3f})",
+                 args.output, result.fibres.lines.size(), options.resolution, q.inside_fraction, q.inverted_cells,
+                 q.coverage.p95, q.attachment.origin_max, q.attachment.insertion_max, r.seconds, r.repair_seconds,
+                 r.sphere_seconds, r.placement_seconds, r.settle_seconds, r.check_seconds);
+  } catch (const Error& e) {
+    if (!args.report.empty() && !report.contains("status")) {
+      report["status"] = "failed";
+      report["error"] = e.what();
+      report["error_code"] = error_name(e.code());
+      write_json_report(args.report, report);
+    }
+    throw;
+  }
+}
+
+}  // namespace
+
+void add_decompose_command(CLI::App& app) {
+  auto args = std::make_shared<DecomposeArgs>();
+  DecomposeOptions& o = args->options;
+  CLI::App* cmd = app.add_subcommand("decompose", "Muscle surface in, muscle fibres out (repaired, mapped, settled, checked)");
+  cmd->add_option("input", args->input, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired first")->required();
+  cmd->add_option("-o,--output", args->output, "Fibres: .vtk, .vtp, .obj (polylines) or .csv")->required();
+  cmd->add_option("--report", args->report, "Write a JSON report (every stage, quality)");
+  cmd->add_option("--write-repaired", args->repaired_output, "Also write the repaired muscle (off, obj, stl, ply, vtk)");
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
+  cmd->add_option("--template", args->kind, "Fibre template: parallel, pennate, curved, fanned, rectus")
+      ->capture_default_str();
+  cmd->add_option("--fibres", o.fibres, "Number of fibres (split near-square)")->capture_default_str();
+  cmd->add_option("--resolution", o.resolution, "Points per fibre")->capture_default_str();
+  cmd->add_option("--model", args->model, "Springs: 6 (face neighbours) or 26 (all neighbours)")->capture_default_str();
+  cmd->add_option("--solver", args->solver, "Settle: static (equilibrium) or verlet (the thesis's dynamics)")
+      ->capture_default_str();
+  cmd->add_option("--tolerance", o.settle.tolerance, "Stop the settle at this relative residual")->capture_default_str();
+  cmd->add_option("--max-iterations", o.settle.max_iterations, "Iteration cap of the settle")->capture_default_str();
+  cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute, verlet) or auto")
+      ->capture_default_str();
+  cmd->add_option("--smooth", o.smooth_steps, "Smoothing passes along the fibres")->capture_default_str();
+  cmd->add_option("--smooth-weight", o.smooth_weight, "Weight of each smoothing pass")->capture_default_str();
+  cmd->add_option("--sphere-method", args->sphere_method, "Sphere map: tutte (default) or relax (the thesis's)")
+      ->capture_default_str();
+  cmd->add_option("--max-landmark-distance", o.attachments.max_landmark_distance,
+                  "Landmarks farther from the surface than this fraction of the diagonal are an error")
+      ->capture_default_str();
+  cmd->add_option("--end-fraction", o.attachments.end_fraction, "Automatic areas: share of the length at each end")
+      ->capture_default_str();
+  cmd->add_option("--region-radius", o.placement.region_radius,
+                  "Attachment region: vertices within this fraction of the muscle length of an area point")
+      ->capture_default_str();
+  cmd->add_option("--rest", args->rest,
+                  "Spring rest lengths: tension (template, stretched, all springs start in tension), template "
+                  "(stretched), zero (harmonic map)")
+      ->capture_default_str();
+  cmd->add_option("--max-face-depth", o.placement.max_face_depth,
+                  "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
+      ->capture_default_str();
+  cmd->add_option("--contact-rounds", o.contact_rounds,
+                  "Containment rounds: points the settle leaves outside are fixed just inside and the settle rerun")
+      ->capture_default_str();
+  cmd->add_flag("--keep-failed", args->keep_failed,
+                "Write the fibres even when they fail the check, for inspection (the exit code is still 19)");
+  cmd->callback([args] { run_decompose(*args); });
+}
+
+}  // namespace fascicle::app

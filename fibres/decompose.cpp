@@ -1,0 +1,363 @@
+#include "fibres/decompose.h"
+
+#include "fibres/fibre_grid.h"
+#include "geometry/errors.h"
+#include "morph/sphere_locator.h"
+#include "morph/surface_query.h"
+
+#include <Eigen/SVD>
+#include <chrono>
+#include <cmath>
+
+#ifdef FASCICLE_HAVE_SHADERS
+#include "shaders/gl_context.h"
+#include "shaders/gpu_settle.h"
+#endif
+
+namespace fascicle {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+nlohmann::json settle_json(const springs::SettleReport& r) {
+  return {{"solver", r.solver},       {"backend", r.backend},   {"iterations", r.iterations},
+          {"converged", r.converged}, {"residual", r.residual}, {"setup_seconds", r.setup_seconds},
+          {"seconds", r.seconds}};
+}
+
+// Rest lengths from the template, stretched by the symmetric part of the linear map that best
+// fits the template's spring vectors onto those of `fitted` (least squares).
+void stretch_rest_lengths(springs::SpringSystem& system, const std::vector<Vec3>& template_positions,
+                          const std::vector<Vec3>& fitted, bool tension, nlohmann::json& report) {
+  Eigen::Matrix3d cross = Eigen::Matrix3d::Zero(), gram = Eigen::Matrix3d::Zero();
+  for (const springs::Spring& s : system.springs) {
+    const Vec3 t = template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
+    const Vec3 h = fitted[static_cast<std::size_t>(s.b)] - fitted[static_cast<std::size_t>(s.a)];
+    cross += h * t.transpose();
+    gram += t * t.transpose();
+  }
+  const Eigen::Matrix3d linear = cross * gram.inverse();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(linear, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix3d stretch = svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
+  double shortest = 1e300;
+  for (springs::Spring& s : system.springs) {
+    const Vec3 t = template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
+    s.rest = (stretch * t).norm();
+    shortest = std::min(shortest, s.rest);
+    if (!(s.rest > 0.0)) throw SolverError("decompose: the template stretch gives a spring of rest length 0");
+    s.stiffness = 1.0 / s.rest;
+  }
+  double scale = 1.0;
+  if (tension) {
+    // Every spring starts stretched: rest <= 0.9 of its length in the fitted configuration.
+    for (const springs::Spring& s : system.springs) {
+      const double l = (fitted[static_cast<std::size_t>(s.b)] - fitted[static_cast<std::size_t>(s.a)]).norm();
+      scale = std::min(scale, 0.9 * l / s.rest);
+    }
+    if (!(scale > 0.0)) throw SolverError("decompose: a spring has length 0 in the harmonic map; use --rest zero");
+    for (springs::Spring& s : system.springs) {
+      s.rest *= scale;
+      s.stiffness = 1.0 / s.rest;
+    }
+    shortest *= scale;
+  }
+  report["tension_scale"] = scale;
+  const Vec3 sv = svd.singularValues();
+  report["stretch"] = {sv.x(), sv.y(), sv.z()};
+  report["shortest_rest"] = shortest;
+}
+
+// Mean length of the springs at each point (its local lattice spacing).
+std::vector<double> local_spacing(const springs::SpringSystem& system) {
+  std::vector<double> sum(system.positions.size(), 0.0), count(system.positions.size(), 0.0);
+  for (const springs::Spring& s : system.springs) {
+    const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
+    sum[static_cast<std::size_t>(s.a)] += l;
+    sum[static_cast<std::size_t>(s.b)] += l;
+    count[static_cast<std::size_t>(s.a)] += 1.0;
+    count[static_cast<std::size_t>(s.b)] += 1.0;
+  }
+  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] = count[i] > 0.0 ? sum[i] / count[i] : 0.0;
+  return sum;
+}
+
+std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
+  std::vector<int> out;
+  for (std::size_t q = 0; q < system.positions.size(); ++q)
+    if (!system.fixed[q] && query.side(system.positions[q]) != Side::inside) out.push_back(static_cast<int>(q));
+  return out;
+}
+
+}  // namespace
+
+const char* rest_shape_name(RestShape shape) {
+  switch (shape) {
+    case RestShape::zero: return "zero";
+    case RestShape::tension: return "tension";
+    case RestShape::template_: return "template";
+  }
+  return "?";
+}
+
+RestShape parse_rest_shape(const std::string& name) {
+  if (name == "zero") return RestShape::zero;
+  if (name == "tension") return RestShape::tension;
+  if (name == "template") return RestShape::template_;
+  throw OptionError("--rest: unknown rest shape '" + name + "' (valid: zero, tension, template)");
+}
+
+springs::SettleOptions DecomposeOptions::default_settle() {
+  springs::SettleOptions s;
+  s.solver = springs::SolverKind::static_equilibrium;
+  s.tolerance = 1e-6;
+  s.max_iterations = 20000;
+  return s;
+}
+
+void DecomposeOptions::validate() const {
+  repair.validate();
+  sphere.validate();
+  attachments.validate();
+  placement.validate();
+  settle.validate();
+  if (fibres < 4) throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
+  if (fibres > 1'000'000) throw OptionError("fibres: at most 1000000, got " + std::to_string(fibres));
+  if (resolution < 2 || resolution > 100'000)
+    throw OptionError("resolution: must be in 2..100000 points per fibre, got " + std::to_string(resolution));
+  if (backend != "cpu" && backend != "gl" && backend != "auto")
+    throw OptionError("backend: unknown backend '" + backend + "' (valid: cpu, gl, auto)");
+  if (contact_rounds < 0 || contact_rounds > 100)
+    throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
+  if (!(contact_depth > 0.0 && contact_depth < 1.0))
+    throw OptionError("contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
+  if (smooth_steps < 0 || smooth_steps > 100'000)
+    throw OptionError("smooth: must be in 0..100000 steps, got " + std::to_string(smooth_steps));
+  if (!(smooth_weight > 0.0 && smooth_weight <= 1.0))
+    throw OptionError("smooth-weight: must be in (0, 1], got " + std::to_string(smooth_weight));
+}
+
+nlohmann::json DecomposeReport::to_json() const {
+  nlohmann::json j;
+  j["status"] = status;
+  if (!failure.empty()) j["failure"] = failure;
+  j["repair"] = repair;
+  j["sphere"] = sphere;
+  j["attachments"] = attachments;
+  j["placement"] = placement;
+  j["lattice"] = lattice;
+  j["settle"] = settle;
+  j["containment"] = containment;
+  j["smoothing"] = smoothing;
+  j["quality"] = quality.to_json();
+  j["renderer"] = renderer;
+  j["seconds"] = {{"repair", repair_seconds},   {"sphere", sphere_seconds}, {"placement", placement_seconds},
+                  {"settle", settle_seconds},   {"check", check_seconds},   {"total", seconds}};
+  return j;
+}
+
+Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options) {
+  options.validate();
+  const auto start = Clock::now();
+  RepairResult repaired = repair_mesh(soup, options.repair);
+  const double repair_seconds = since(start);
+  Decomposition out = decompose_repaired(repaired.mesh, landmarks, options);
+  out.report.repair = repaired.report.to_json();
+  out.report.repair_seconds = repair_seconds;
+  out.report.seconds += repair_seconds;
+  return out;
+}
+
+Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                 const DecomposeOptions& options) {
+  options.validate();
+  const auto start = Clock::now();
+  Decomposition out;
+  out.muscle = muscle;
+  DecomposeReport& report = out.report;
+
+  // Attachment areas.
+  Attachments areas;
+  if (landmarks.given()) {
+    if (landmarks.origin.empty() || landmarks.insertion.empty())
+      throw OptionError("landmarks: give both an origin and an insertion file, or neither (automatic areas)");
+    areas = landmark_attachments(muscle, landmarks.origin, landmarks.origin_source, landmarks.insertion,
+                                 landmarks.insertion_source, options.attachments);
+  } else {
+    areas = automatic_attachments(muscle, options.attachments);
+  }
+  report.attachments = {{"automatic", areas.automatic},
+                        {"origin", {{"source", areas.origin.source},
+                                    {"points", areas.origin.points.size()},
+                                    {"max_distance", areas.origin.max_distance}}},
+                        {"insertion", {{"source", areas.insertion.source},
+                                       {"points", areas.insertion.points.size()},
+                                       {"max_distance", areas.insertion.max_distance}}}};
+
+  // Sphere map of the muscle.
+  auto stage = Clock::now();
+  const SphereMap map = map_to_sphere(muscle, options.sphere);
+  report.sphere = map.report.to_json();
+  if (!map.report.quality.bijective())
+    throw SolverError("sphere map: not a bijection (" + map.report.failure + "); try --sphere-method " +
+                      std::string(map.report.method == "tutte" ? "relax" : "tutte"));
+  const SphereLocator locator(map.positions, muscle.triangles);
+  report.sphere_seconds = since(stage);
+
+  // Template lattice with a ring of surface lines, placed on the muscle.
+  stage = Clock::now();
+  const auto split = springs::near_square_split(options.fibres);
+  springs::LatticeOptions lattice_options;
+  lattice_options.kind = options.kind;
+  lattice_options.nr = split[0] + 2;
+  lattice_options.ns = split[1] + 2;
+  lattice_options.resolution = options.resolution;
+  lattice_options.model = options.model;
+  const springs::Lattice lattice = springs::build_lattice(lattice_options);
+  const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);
+  report.placement = placement.report.to_json();
+  report.lattice = {{"template", springs::template_name(options.kind)},
+                    {"model", static_cast<int>(options.model)},
+                    {"nx", lattice.nx},
+                    {"ny", lattice.ny},
+                    {"nz", lattice.nz},
+                    {"points", lattice.point_count()},
+                    {"springs", lattice.system.springs.size()},
+                    {"fibres", split[0] * split[1]}};
+  report.placement_seconds = since(stage);
+
+  // Settle: zero-rest-length equilibrium first, then the template's stretched rest lengths.
+  stage = Clock::now();
+  springs::SpringSystem system = lattice.system;
+  const std::vector<Vec3> template_positions = system.positions;
+  for (std::size_t q = 0; q < system.positions.size(); ++q)
+    if (system.fixed[q]) system.positions[q] = placement.points[q].position;
+  const springs::LatticeShape shape = springs::shape_of(lattice);
+  const SurfaceQuery query(muscle);
+  {
+    springs::SpringSystem harmonic = system;
+    for (springs::Spring& s : harmonic.springs) s.rest = 0.0;
+    springs::SettleOptions linear;
+    linear.solver = springs::SolverKind::static_equilibrium;
+    linear.static_method = springs::StaticMethod::local_global;
+    linear.acceleration = springs::Acceleration::none;
+    linear.tolerance = 1e-12;
+    linear.max_iterations = 4;
+    const springs::SettleReport first = springs::settle(harmonic, linear);
+    report.settle["harmonic"] = settle_json(first);
+    system.positions = harmonic.positions;
+  }
+  if (options.rest != RestShape::zero)
+    stretch_rest_lengths(system, template_positions, system.positions, options.rest == RestShape::tension,
+                         report.settle);
+  else
+    for (springs::Spring& s : system.springs) s.rest = 0.0;
+  report.settle["rest"] = rest_shape_name(options.rest);
+
+  int pinned = 0, rounds = 0;
+  nlohmann::json solves = nlohmann::json::array();
+  std::vector<int> outside;
+  auto settle_with_contact = [&]() {
+    for (;;) {
+      springs::SettleReport settled;
+      if (options.backend == "gl") {
+  #ifdef FASCICLE_HAVE_SHADERS
+        const shaders::GlContext context;
+        shaders::GpuSettleOptions gpu;
+        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, options.settle, gpu, &shape);
+        report.renderer = gpu_report.renderer;
+        settled = gpu_report;
+  #else
+        throw Error(ErrorCode::gpu, "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
+                                    "was built); use --backend cpu");
+  #endif
+      } else {
+        settled = springs::settle(system, options.settle, &shape);
+      }
+      solves.push_back(settle_json(settled));
+      outside = outside_free_points(system, query);
+      if (outside.empty() || rounds == options.contact_rounds) break;
+      ++rounds;
+      const std::vector<double> spacing = local_spacing(system);
+      for (int q : outside) {
+        const Vec3 p = system.positions[static_cast<std::size_t>(q)];
+        const SurfacePoint c = query.closest_point(p);
+        Vec3 inward = c.position - p;
+        if (inward.norm() == 0.0) {
+          // On the surface: go towards the muscle's centre of mass of the lattice neighbours.
+          inward = Vec3::Zero();
+          for (const springs::Spring& s : system.springs) {
+            if (s.a == q) inward += system.positions[static_cast<std::size_t>(s.b)] - p;
+            if (s.b == q) inward += system.positions[static_cast<std::size_t>(s.a)] - p;
+          }
+        }
+        inward.normalize();
+        double depth = options.contact_depth * spacing[static_cast<std::size_t>(q)];
+        Vec3 moved = c.position + depth * inward;
+        for (int attempt = 0; attempt < 6 && query.side(moved) != Side::inside; ++attempt) {
+          depth *= 0.5;
+          moved = c.position + depth * inward;
+        }
+        system.positions[static_cast<std::size_t>(q)] = moved;
+        system.fixed[static_cast<std::size_t>(q)] = 1;
+        ++pinned;
+      }
+    }
+  };
+  settle_with_contact();
+  report.settle["solves"] = solves;
+  report.containment = {{"rounds", rounds}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
+  report.settle_seconds = since(stage);
+
+  // Smoothing along fibres, free points only; a point the smoothing would move out stays.
+  long reverted = 0;
+  if (options.smooth_steps > 0) {
+    const std::vector<Vec3> before = system.positions;
+    const int plane = lattice.nx * lattice.ny;
+    for (int step = 0; step < options.smooth_steps; ++step) {
+      std::vector<Vec3> next = system.positions;
+      for (int q = 0; q < lattice.point_count(); ++q) {
+        const int k = q / plane;
+        if (system.fixed[static_cast<std::size_t>(q)] || k == 0 || k == lattice.nz - 1) continue;
+        const Vec3 mid = 0.5 * (system.positions[static_cast<std::size_t>(q - plane)] +
+                                system.positions[static_cast<std::size_t>(q + plane)]);
+        next[static_cast<std::size_t>(q)] =
+            (1.0 - options.smooth_weight) * system.positions[static_cast<std::size_t>(q)] + options.smooth_weight * mid;
+      }
+      system.positions.swap(next);
+    }
+    for (int q : outside_free_points(system, query)) {
+      system.positions[static_cast<std::size_t>(q)] = before[static_cast<std::size_t>(q)];
+      ++reverted;
+    }
+  }
+  report.smoothing = {{"steps", options.smooth_steps}, {"weight", options.smooth_weight}, {"reverted", reverted}};
+
+  // Fibres: the interior lattice lines, origin (t = 0) to insertion.
+  std::vector<std::vector<Vec3>> lines;
+  std::vector<int> rs, ss;
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i) {
+      std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
+      for (int k = 0; k < lattice.nz; ++k) line[static_cast<std::size_t>(k)] = system.positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+      lines.push_back(std::move(line));
+      rs.push_back(i - 1);
+      ss.push_back(j - 1);
+    }
+  out.fibres = lattice_fibres(std::move(lines), rs, ss);
+  for (const auto& line : out.fibres.lines)
+    for (const Vec3& p : line)
+      if (!p.allFinite()) throw SolverError("decompose: a fibre point is not finite; check the settle options");
+
+  // Check.
+  stage = Clock::now();
+  report.quality = check_fibres(out.fibres, muscle, areas, options.check);
+  report.check_seconds = since(stage);
+  report.status = report.quality.pass ? "ok" : "failed";
+  if (!report.quality.pass) report.failure = "the fibres fail the quality check";
+  report.seconds = since(start);
+  return out;
+}
+
+}  // namespace fascicle

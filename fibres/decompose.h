@@ -1,0 +1,119 @@
+#pragma once
+/// \file decompose.h
+/// The whole job (../shared/docs/METHOD.md, "The job" and "The pipeline"): a raw muscle surface
+/// in, muscle fibres out, checked.
+///
+///  1. repair (repair/repair.h) into a closed genus-0 manifold;
+///  2. attachment areas: from landmark files, or automatic (morph/attachments.h);
+///  3. sphere map of the muscle (morph/sphere_map.h), bijective, and a locator on it;
+///  4. the template lattice (springs/lattice.h) with a ring of surface lines around the requested
+///     fibres: (nr + 2) x (ns + 2) lines of `resolution` points; its surface points are placed on
+///     the muscle (fibres/template_placement.h: template sphere, pole-frame alignment of both
+///     attachment areas, location in the muscle's sphere map);
+///  5. settle of the interior with the surface points fixed: first the zero-rest-length
+///     equilibrium (one sparse linear solve; a discrete harmonic map of the surface positions),
+///     then the springs' rest lengths taken from the template, stretched by the best-fitting
+///     linear map of template onto that first equilibrium, and the chosen solver run from it;
+///  6. containment: a free point the settle leaves outside the muscle (exact inside test) is
+///     moved to the closest surface point, `contact_depth` of its local spacing further in,
+///     fixed there, and the settle repeated (at most `contact_rounds` times) - a contact
+///     constraint of the solve, reported, never a silent clip of the output;
+///  7. optional smoothing along the fibres (free points only);
+///  8. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
+///     attachment distances.
+#include "fibres/fibre_check.h"
+#include "fibres/template_placement.h"
+#include "geometry/mesh.h"
+#include "morph/attachments.h"
+#include "morph/sphere_map.h"
+#include "repair/repair.h"
+#include "springs/lattice.h"
+#include "springs/settle.h"
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace fascicle {
+
+/// Rest lengths of the lattice's springs in the settle (step 5).
+enum class RestShape {
+  zero,      ///< rest length 0: the settle is the discrete harmonic map (one linear solve)
+  tension,   ///< the template's, stretched to the muscle, then scaled down until every spring
+             ///< starts in tension (no spring pushes, so none buckles)
+  template_, ///< the template's, stretched by the best linear fit to the muscle
+};
+/// "zero", "tension", "template".
+const char* rest_shape_name(RestShape shape);
+/// Parses a rest-shape name; throws OptionError naming `--rest` and the valid names.
+RestShape parse_rest_shape(const std::string& name);
+
+/// Options of a decomposition. Defaults are those of `fascicle decompose`.
+struct DecomposeOptions {
+  RepairOptions repair;             ///< repair stage (defaults: repair/repair.h)
+  SphereMapOptions sphere;          ///< muscle sphere map (default tutte)
+  AttachmentOptions attachments;    ///< landmark tolerance, automatic end fraction
+  PlacementOptions placement;       ///< regions and alignment on the sphere
+  springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
+  int fibres = 100;                 ///< fibres output, >= 4, split near-square (default 100)
+  int resolution = 15;              ///< points per fibre, >= 2 (default 15)
+  springs::SpringModel model = springs::SpringModel::model6;  ///< springs (default model-6)
+  RestShape rest = RestShape::tension;  ///< spring rest lengths in the settle (default tension)
+  /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000
+  /// iterations).
+  springs::SettleOptions settle = default_settle();
+  /// Compute backend of the settle: "cpu", "gl" (OpenGL compute, Verlet only) or "auto"
+  /// (the GPU only for a Verlet settle of a large lattice on a hardware device) (default cpu).
+  std::string backend = "cpu";
+  int contact_rounds = 4;       ///< containment rounds (step 6), >= 0 (default 4)
+  double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
+                                ///< spacings, (0, 1) (default 0.3)
+  int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
+  double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
+  CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
+  /// Throws OptionError naming the first bad field.
+  void validate() const;
+  static springs::SettleOptions default_settle();
+};
+
+/// Landmark files of the attachment areas (both or neither).
+struct Landmarks {
+  std::vector<Vec3> origin, insertion;
+  std::string origin_source, insertion_source;  ///< file names, for messages
+  bool given() const { return !origin.empty() || !insertion.empty(); }
+};
+
+/// What a decomposition did: every stage's figures and seconds.
+struct DecomposeReport {
+  std::string status;       ///< "ok" or "failed" (the quality check failed)
+  std::string failure;      ///< why, when failed
+  nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, smoothing;
+  CheckReport quality;
+  std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
+  double repair_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,
+         check_seconds = 0, seconds = 0;
+  nlohmann::json to_json() const;
+};
+
+/// The repaired muscle, its fibres (interior lattice lines, origin to insertion, with the
+/// `fibre_r`, `fibre_s` arrays of fibres/fibre_grid.h) and the report.
+struct Decomposition {
+  TriangleMesh muscle;
+  Polylines fibres;
+  DecomposeReport report;
+};
+
+/// Decomposes the raw muscle `soup` (any units) into fibres. Method: see the file comment.
+/// The result's report says "failed" when the final check fails (the fibres are still returned
+/// for inspection; the command line then writes no fibre file). Throws TopologyError
+/// (repair_failed) when the mesh cannot be repaired, InputError(landmarks) for far landmarks or
+/// coinciding areas, OptionError for bad options, SolverError when the sphere map is not a
+/// bijection or the settle diverges, Error(gpu) for GPU failures.
+Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options = {});
+
+/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-8.
+Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                 const DecomposeOptions& options = {});
+
+}  // namespace fascicle

@@ -1,0 +1,525 @@
+#include "fibres/template_placement.h"
+
+#include "fibres/pole_frame.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_stats.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <unordered_map>
+
+namespace fascicle {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct Principal {
+  Vec3 mean = Vec3::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();  // columns by increasing variance
+};
+
+Principal principal_axes(const std::vector<Vec3>& points) {
+  Principal out;
+  if (points.empty()) return out;
+  for (const Vec3& p : points) out.mean += p;
+  out.mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : points) cov += (p - out.mean) * (p - out.mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  out.axes = eig.eigenvectors();
+  return out;
+}
+
+// Vertices within `radius` of any of `points` (hash grid of cell `radius`), plus for each point
+// the nearest corner of its face, so that a region is never empty.
+std::vector<char> region_of(const TriangleMesh& mesh, const AttachmentArea& area, double radius) {
+  std::vector<char> in(mesh.positions.size(), 0);
+  const Vec3 lo = bounding_box(mesh.positions).min;
+  auto key = [&](const Vec3& p) {
+    const Vec3 c = (p - lo) / radius;
+    const auto ix = static_cast<long long>(std::floor(c.x()));
+    const auto iy = static_cast<long long>(std::floor(c.y()));
+    const auto iz = static_cast<long long>(std::floor(c.z()));
+    return std::array<long long, 3>{ix, iy, iz};
+  };
+  auto hash = [](long long x, long long y, long long z) {
+    return static_cast<unsigned long long>(x) * 73856093ULL ^ static_cast<unsigned long long>(y) * 19349663ULL ^
+           static_cast<unsigned long long>(z) * 83492791ULL;
+  };
+  std::unordered_map<unsigned long long, std::vector<int>> grid;
+  for (std::size_t i = 0; i < area.points.size(); ++i) {
+    const auto k = key(area.points[i].position);
+    grid[hash(k[0], k[1], k[2])].push_back(static_cast<int>(i));
+  }
+  const double r2 = radius * radius;
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    const Vec3& p = mesh.positions[v];
+    const auto k = key(p);
+    bool found = false;
+    for (long long dx = -1; dx <= 1 && !found; ++dx)
+      for (long long dy = -1; dy <= 1 && !found; ++dy)
+        for (long long dz = -1; dz <= 1 && !found; ++dz) {
+          const auto it = grid.find(hash(k[0] + dx, k[1] + dy, k[2] + dz));
+          if (it == grid.end()) continue;
+          for (int i : it->second)
+            if ((area.points[static_cast<std::size_t>(i)].position - p).squaredNorm() <= r2) {
+              found = true;
+              break;
+            }
+        }
+    in[v] = found ? 1 : 0;
+  }
+  for (const SurfacePoint& sp : area.points) {
+    if (sp.face < 0 || sp.face >= static_cast<int>(mesh.triangles.size())) continue;
+    const Triangle& t = mesh.triangles[static_cast<std::size_t>(sp.face)];
+    int best = t[0];
+    for (int c = 1; c < 3; ++c)
+      if ((mesh.positions[t[c]] - sp.position).squaredNorm() < (mesh.positions[best] - sp.position).squaredNorm())
+        best = t[c];
+    in[best] = 1;
+  }
+  return in;
+}
+
+// The region vertex farthest (angle on the sphere) from the region's border (non-region
+// vertices next to it): a centre inside the region even when it is not convex.
+Vec3 region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, const std::vector<char>& in,
+                   const std::string& name) {
+  std::vector<char> border(mesh.positions.size(), 0);
+  for (const Triangle& t : mesh.triangles)
+    for (int c = 0; c < 3; ++c) {
+      const int a = t[c], b = t[(c + 1) % 3];
+      if (in[a] && !in[b]) border[b] = 1;
+      if (in[b] && !in[a]) border[a] = 1;
+    }
+  std::vector<Vec3> border_points;
+  for (std::size_t v = 0; v < border.size(); ++v)
+    if (border[v]) border_points.push_back(sphere[v]);
+  if (border_points.empty())
+    throw InputError(ErrorCode::landmarks, name + " area covers the whole muscle");
+  int best = -1;
+  double best_cos = 2.0;  // smallest max-cosine = farthest from the border
+  for (std::size_t v = 0; v < in.size(); ++v) {
+    if (!in[v]) continue;
+    double max_cos = -1.0;
+    for (const Vec3& b : border_points) {
+      max_cos = std::max(max_cos, sphere[v].dot(b));
+      if (max_cos >= best_cos) break;  // cannot beat the best any more
+    }
+    if (max_cos < best_cos) {
+      best_cos = max_cos;
+      best = static_cast<int>(v);
+    }
+  }
+  if (best < 0) throw InputError(ErrorCode::landmarks, name + " area has no vertex on the muscle");
+  return sphere[static_cast<std::size_t>(best)];
+}
+
+// Star radius R(phi) of a region around the north pole of a frame, sampled in `bins` azimuths.
+class StarRadius {
+ public:
+  StarRadius() = default;
+  StarRadius(const std::vector<Vec3>& pole_vectors, const std::vector<char>& in, bool south, int bins)
+      : radius_(static_cast<std::size_t>(bins), kPi) {
+    for (std::size_t v = 0; v < pole_vectors.size(); ++v) {
+      if (in[v]) continue;
+      const Vec3& q = pole_vectors[v];
+      const double theta = south ? kPi - polar_angle(q) : polar_angle(q);
+      const std::size_t b = bin(azimuth(q));
+      radius_[b] = std::min(radius_[b], theta);
+    }
+    // A border vertex bounds the edges around it, which reach into the neighbouring azimuths:
+    // take the minimum over two bins either side.
+    std::vector<double> widened(radius_.size());
+    const int n = bins;
+    for (int b = 0; b < n; ++b) {
+      double m = kPi;
+      for (int d = -2; d <= 2; ++d) m = std::min(m, radius_[static_cast<std::size_t>(((b + d) % n + n) % n)]);
+      widened[static_cast<std::size_t>(b)] = m;
+    }
+    radius_ = std::move(widened);
+  }
+  double operator()(double phi) const {
+    const double n = static_cast<double>(radius_.size());
+    double x = (phi + kPi) / (2.0 * kPi) * n - 0.5;  // bin centres at integer x
+    x -= n * std::floor(x / n);
+    const auto b0 = static_cast<std::size_t>(std::floor(x)) % radius_.size();
+    const std::size_t b1 = (b0 + 1) % radius_.size();
+    const double f = x - std::floor(x);
+    return (1.0 - f) * radius_[b0] + f * radius_[b1];
+  }
+  std::vector<double>& values() { return radius_; }
+  const std::vector<double>& values() const { return radius_; }
+
+ private:
+  std::size_t bin(double phi) const {
+    const double n = static_cast<double>(radius_.size());
+    auto b = static_cast<long long>(std::floor((phi + kPi) / (2.0 * kPi) * n));
+    return static_cast<std::size_t>(std::clamp<long long>(b, 0, static_cast<long long>(radius_.size()) - 1));
+  }
+  std::vector<double> radius_;
+};
+
+// Cumulative share of a measure over [0, 1], as a monotone piecewise-linear function with its
+// inverse.
+class Cumulative {
+ public:
+  explicit Cumulative(int bins) : mass_(static_cast<std::size_t>(bins), 0.0) {}
+  void add(double u, double weight) {
+    if (!(u >= 0.0 && u <= 1.0) || !(weight > 0.0)) return;
+    const auto b = std::min(mass_.size() - 1, static_cast<std::size_t>(u * static_cast<double>(mass_.size())));
+    mass_[b] += weight;
+  }
+  void finish() {
+    double total = std::accumulate(mass_.begin(), mass_.end(), 0.0);
+    // A small uniform floor keeps the function strictly increasing (invertible) over empty bins.
+    const double floor = (total > 0.0 ? total : 1.0) * 1e-3 / static_cast<double>(mass_.size());
+    cdf_.assign(mass_.size() + 1, 0.0);
+    for (std::size_t b = 0; b < mass_.size(); ++b) cdf_[b + 1] = cdf_[b] + mass_[b] + floor;
+    for (double& c : cdf_) c /= cdf_.back();
+  }
+  double share(double u) const {
+    const double x = std::clamp(u, 0.0, 1.0) * static_cast<double>(mass_.size());
+    const auto b = std::min(mass_.size() - 1, static_cast<std::size_t>(x));
+    return cdf_[b] + (x - static_cast<double>(b)) * (cdf_[b + 1] - cdf_[b]);
+  }
+  double inverse(double share_value) const {
+    const double s = std::clamp(share_value, 0.0, 1.0);
+    const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), s);
+    std::size_t b = it == cdf_.begin() ? 0 : static_cast<std::size_t>(it - cdf_.begin()) - 1;
+    b = std::min(b, mass_.size() - 1);
+    const double width = cdf_[b + 1] - cdf_[b];
+    const double f = width > 0.0 ? (s - cdf_[b]) / width : 0.0;
+    return (static_cast<double>(b) + std::clamp(f, 0.0, 1.0)) / static_cast<double>(mass_.size());
+  }
+
+ private:
+  std::vector<double> mass_, cdf_;
+};
+
+// Template frame: index-box direction from the centre, rotated so that the origin face (t = 0)
+// is at the north pole: (r, s, t) -> (r, -s, -t), a rotation.
+Vec3 template_pole_vector(const Vec3& index_coords) {
+  const Vec3 d = index_coords - Vec3(0.5, 0.5, 0.5);
+  return Vec3(d.x(), -d.y(), -d.z()).normalized();
+}
+
+// Polar angle of the edge of the origin face (t = 0) of the unit index box at azimuth phi.
+double face_edge(double phi) { return std::atan(1.0 / std::max(std::abs(std::cos(phi)), std::abs(std::sin(phi)))); }
+
+Vec3 index_coords(const springs::Lattice& lattice, int q) {
+  const int i = q % lattice.nx;
+  const int j = (q / lattice.nx) % lattice.ny;
+  const int k = q / (lattice.nx * lattice.ny);
+  return Vec3(static_cast<double>(i) / (lattice.nx - 1), static_cast<double>(j) / (lattice.ny - 1),
+              static_cast<double>(k) / (lattice.nz - 1));
+}
+
+}  // namespace
+
+void PlacementOptions::validate() const {
+  if (!(region_radius > 0.0 && region_radius <= 0.5))
+    throw OptionError("region_radius: must be in (0, 0.5], got " + std::to_string(region_radius));
+  if (!(region_margin > 0.0 && region_margin <= 1.0))
+    throw OptionError("region_margin: must be in (0, 1], got " + std::to_string(region_margin));
+  if (azimuth_bins < 8 || azimuth_bins > 4096)
+    throw OptionError("azimuth_bins: must be in 8..4096, got " + std::to_string(azimuth_bins));
+  if (!(max_face_depth > 0.0))
+    throw OptionError("max_face_depth: must be > 0, got " + std::to_string(max_face_depth));
+  if (face_shrink_rounds < 0 || face_shrink_rounds > 100)
+    throw OptionError("face_shrink_rounds: must be in 0..100, got " + std::to_string(face_shrink_rounds));
+  if (!(min_band > 0.0 && min_band < 3.0))
+    throw OptionError("min_band: must be in (0, 3), got " + std::to_string(min_band));
+}
+
+nlohmann::json PlacementReport::to_json() const {
+  return {{"origin_region_vertices", origin_region_vertices},
+          {"insertion_region_vertices", insertion_region_vertices},
+          {"centre_angle_deg", centre_angle_deg},
+          {"moebius_scale", moebius_scale},
+          {"twist_deg", {twist_deg, twist_end_deg}},
+          {"origin_radius_deg", {origin_radius_min_deg, origin_radius_max_deg}},
+          {"insertion_radius_deg", {insertion_radius_min_deg, insertion_radius_max_deg}},
+          {"face_scale", {origin_face_scale, insertion_face_scale}},
+          {"located", located},
+          {"seconds", seconds}};
+}
+
+Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sphere, const SphereLocator& locator,
+                         const Attachments& areas, const springs::Lattice& lattice, const PlacementOptions& options) {
+  options.validate();
+  const auto start = std::chrono::steady_clock::now();
+  FASCICLE_CHECK(sphere.size() == muscle.positions.size(), "sphere map size");
+  Placement out;
+  PlacementReport& report = out.report;
+
+  // Regions and their centres on the muscle sphere.
+  const double length = muscle_length(muscle);
+  const double radius = std::max(options.region_radius * length, 1e-300);
+  const std::vector<char> origin_in = region_of(muscle, areas.origin, radius);
+  const std::vector<char> insertion_in = region_of(muscle, areas.insertion, radius);
+  report.origin_region_vertices = static_cast<int>(std::count(origin_in.begin(), origin_in.end(), 1));
+  report.insertion_region_vertices = static_cast<int>(std::count(insertion_in.begin(), insertion_in.end(), 1));
+  const Vec3 origin_centre = region_centre(muscle, sphere, origin_in, "origin (" + areas.origin.source + ")");
+  const Vec3 insertion_centre =
+      region_centre(muscle, sphere, insertion_in, "insertion (" + areas.insertion.source + ")");
+  report.centre_angle_deg =
+      std::atan2(origin_centre.cross(insertion_centre).norm(), origin_centre.dot(insertion_centre)) * 180.0 / kPi;
+  if (report.centre_angle_deg < 1e-6)
+    throw InputError(ErrorCode::landmarks, areas.origin.source + " and " + areas.insertion.source +
+                                               ": origin and insertion areas have the same centre");
+
+  // Muscle pole frame, scaled so that half the surface area lies on each side of the equator.
+  PoleFrame frame(origin_centre, insertion_centre);
+  const std::size_t nv = muscle.positions.size();
+  std::vector<double> vertex_area(nv, 0.0);
+  for (const Triangle& t : muscle.triangles) {
+    const double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
+                                .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
+                                .norm();
+    for (int c = 0; c < 3; ++c) vertex_area[t[c]] += a / 3.0;
+  }
+  {
+    std::vector<std::pair<double, double>> modulus(nv);
+    double total = 0.0;
+    for (std::size_t v = 0; v < nv; ++v) {
+      modulus[v] = {std::abs(PoleFrame::stereographic(frame.to_pole(sphere[v]))), vertex_area[v]};
+      total += vertex_area[v];
+    }
+    std::sort(modulus.begin(), modulus.end());
+    double acc = 0.0, median = 1.0;
+    for (const auto& [m, a] : modulus) {
+      acc += a;
+      if (acc >= 0.5 * total) {
+        median = m;
+        break;
+      }
+    }
+    if (median > 1e-12 && std::isfinite(median)) frame.set_scale(1.0 / median);
+  }
+  report.moebius_scale = frame.scale();
+  std::vector<Vec3> pole(nv);
+  for (std::size_t v = 0; v < nv; ++v) pole[v] = frame.to_pole(sphere[v]);
+
+  // Star radii of both regions, kept apart by the lateral band.
+  StarRadius origin_radius(pole, origin_in, false, options.azimuth_bins);
+  StarRadius insertion_radius(pole, insertion_in, true, options.azimuth_bins);
+  for (std::size_t b = 0; b < origin_radius.values().size(); ++b) {
+    double& ro = origin_radius.values()[b];
+    double& ri = insertion_radius.values()[b];
+    ro *= options.region_margin;
+    ri *= options.region_margin;
+    const double room = kPi - options.min_band;
+    if (ro + ri > room) {
+      const double f = room / (ro + ri);
+      ro *= f;
+      ri *= f;
+    }
+  }
+  const auto [omin, omax] = std::minmax_element(origin_radius.values().begin(), origin_radius.values().end());
+  const auto [imin, imax] = std::minmax_element(insertion_radius.values().begin(), insertion_radius.values().end());
+  report.origin_radius_min_deg = *omin * 180.0 / kPi;
+  report.origin_radius_max_deg = *omax * 180.0 / kPi;
+  report.insertion_radius_min_deg = *imin * 180.0 / kPi;
+  report.insertion_radius_max_deg = *imax * 180.0 / kPi;
+
+  // Twist: the template's r axis (azimuth 0 in its frame) towards the muscle's second axis.
+  const Principal axes = principal_axes(muscle.positions);
+  const Vec3 second = axes.axes.col(1);
+  double sx = 0.0, sy = 0.0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    const double theta = polar_angle(pole[v]);
+    if (theta < kPi / 4.0 || theta > 3.0 * kPi / 4.0) continue;
+    const double w = (muscle.positions[v] - axes.mean).dot(second) * vertex_area[v];
+    const double phi = azimuth(pole[v]);
+    sx += w * std::cos(phi);
+    sy += w * std::sin(phi);
+  }
+  const double twist = (sx == 0.0 && sy == 0.0) ? 0.0 : std::atan2(sy, sx);
+
+  // Area shares along the lateral band, muscle and template; then every surface point of the
+  // lattice: template sphere -> muscle pole frame -> muscle sphere. `so` and `si` scale the two
+  // star radii (the part of each region the attachment face covers).
+  std::vector<int> surface_points;
+  auto place = [&](double so, double si) {
+    constexpr int kBandBins = 512;
+    Cumulative muscle_band(kBandBins), template_band(kBandBins);
+    for (std::size_t f = 0; f < muscle.triangles.size(); ++f) {
+      const Triangle& t = muscle.triangles[f];
+      const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
+      const double phi = azimuth(c);
+      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
+      const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
+      const double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
+                                 .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
+                                 .norm();
+      muscle_band.add(u, a);
+    }
+    for (const Triangle& t : lattice.surface) {
+      const Vec3 c =
+          (template_pole_vector(index_coords(lattice, t[0])) + template_pole_vector(index_coords(lattice, t[1])) +
+           template_pole_vector(index_coords(lattice, t[2])))
+              .normalized();
+      const double edge = face_edge(azimuth(c));
+      const double u = (polar_angle(c) - edge) / (kPi - 2.0 * edge);
+      const auto& p = lattice.system.positions;
+      const double a = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]).norm();
+      template_band.add(u, a);
+    }
+    muscle_band.finish();
+    template_band.finish();
+
+    // Twist along the band: at each level u the template's r axis turns towards the muscle's
+    // second principal axis as seen from that level's centroid, so that the lattice follows the
+    // muscle's cross-sections instead of the sphere map's azimuths (which rotate along a long
+    // muscle); unwrapped and smoothed along u.
+    constexpr int kLevels = 32;
+    std::vector<Vec3> level_centre(kLevels, Vec3::Zero());
+    std::vector<double> level_area(kLevels, 0.0), level_x(kLevels, 0.0), level_y(kLevels, 0.0);
+    std::vector<int> level_of(nv, -1);
+    for (std::size_t v = 0; v < nv; ++v) {
+      const double phi = azimuth(pole[v]);
+      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
+      const double u = (polar_angle(pole[v]) - ro) / (kPi - ri - ro);
+      if (!(u >= 0.0 && u <= 1.0)) continue;
+      const int b = std::min(kLevels - 1, static_cast<int>(u * kLevels));
+      level_of[v] = b;
+      level_centre[static_cast<std::size_t>(b)] += vertex_area[v] * muscle.positions[v];
+      level_area[static_cast<std::size_t>(b)] += vertex_area[v];
+    }
+    for (int b = 0; b < kLevels; ++b)
+      if (level_area[static_cast<std::size_t>(b)] > 0.0) level_centre[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (level_of[v] < 0) continue;
+      const auto b = static_cast<std::size_t>(level_of[v]);
+      const double w = (muscle.positions[v] - level_centre[b]).dot(second) * vertex_area[v];
+      const double phi = azimuth(pole[v]);
+      level_x[b] += w * std::cos(phi);
+      level_y[b] += w * std::sin(phi);
+    }
+    std::vector<double> level_twist(kLevels, twist);
+    double previous = twist;
+    for (int b = 0; b < kLevels; ++b) {
+      const auto i = static_cast<std::size_t>(b);
+      double t = previous;
+      if (std::hypot(level_x[i], level_y[i]) > 0.0) {
+        t = std::atan2(level_y[i], level_x[i]);
+        t = previous + std::remainder(t - previous, 2.0 * kPi);
+      }
+      level_twist[i] = previous = t;
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<double> smoothed(kLevels);
+      for (int b = 0; b < kLevels; ++b) {
+        double sum = 0.0;
+        int count = 0;
+        for (int d = -2; d <= 2; ++d) {
+          const int c = b + d;
+          if (c < 0 || c >= kLevels) continue;
+          sum += level_twist[static_cast<std::size_t>(c)];
+          ++count;
+        }
+        smoothed[static_cast<std::size_t>(b)] = sum / count;
+      }
+      level_twist.swap(smoothed);
+    }
+    const auto twist_at = [&](double u) {
+      const double x = std::clamp(u * kLevels - 0.5, 0.0, static_cast<double>(kLevels - 1));
+      const auto b = std::min(static_cast<std::size_t>(x), static_cast<std::size_t>(kLevels - 2));
+      const double f = x - static_cast<double>(b);
+      return (1.0 - f) * level_twist[b] + f * level_twist[b + 1];
+    };
+    report.twist_deg = twist_at(0.0) * 180.0 / kPi;
+    report.twist_end_deg = twist_at(1.0) * 180.0 / kPi;
+
+    // Every surface point of the lattice: template sphere -> muscle pole frame -> muscle sphere.
+    const int n = lattice.point_count();
+    surface_points.clear();
+    std::vector<Vec3> directions;
+    for (int q = 0; q < n; ++q) {
+      if (!lattice.system.fixed[static_cast<std::size_t>(q)]) continue;
+      const Vec3 c = index_coords(lattice, q);
+      const Vec3 tq = template_pole_vector(c);
+      const double theta_t = polar_angle(tq);
+      const double phi_t = (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
+      const double edge = face_edge(phi_t);
+      const int k = q / (lattice.nx * lattice.ny);
+      double theta, phi;
+      if (k == 0) {
+        phi = phi_t + twist_at(0.0);
+        const double rho = std::min(1.0, std::tan(theta_t) / std::tan(edge));
+        theta = rho * so * origin_radius(phi);
+      } else if (k == lattice.nz - 1) {
+        phi = phi_t + twist_at(1.0);
+        const double rho = std::min(1.0, std::tan(kPi - theta_t) / std::tan(edge));
+        theta = kPi - rho * si * insertion_radius(phi);
+      } else {
+        const double ut = std::clamp((theta_t - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
+        const double um = muscle_band.inverse(template_band.share(ut));
+        phi = phi_t + twist_at(um);
+        const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
+        theta = ro + um * (kPi - ri - ro);
+      }
+      surface_points.push_back(q);
+      directions.push_back(frame.from_pole(from_polar(theta, phi)));
+    }
+    const std::vector<SurfacePoint> located = locator.locate_all(directions);
+    out.points.assign(static_cast<std::size_t>(n), SurfacePoint{});
+    for (std::size_t i = 0; i < surface_points.size(); ++i) {
+      SurfacePoint sp = located[i];
+      sp.position = point_on_mesh(muscle, sp);
+      sp.distance = 0.0;
+      out.points[static_cast<std::size_t>(surface_points[i])] = sp;
+    }
+
+  };
+
+  // An attachment face must not be deeper (along the muscle, from its first fibre points to its
+  // rim) than max_face_depth of the way to the first lateral ring: a face that wraps round a
+  // rounded end folds the first layer of cells. Shrink the face towards its centre until it fits.
+  const int plane = lattice.nx * lattice.ny;
+  auto face_depth_ratio = [&](int k_face, int k_ring) {
+    Vec3 face_centre = Vec3::Zero(), ring_centre = Vec3::Zero();
+    int nf = 0, nr = 0;
+    for (int q : surface_points) {
+      const int k = q / plane;
+      if (k == k_face) face_centre += out.points[static_cast<std::size_t>(q)].position, ++nf;
+      if (k == k_ring) ring_centre += out.points[static_cast<std::size_t>(q)].position, ++nr;
+    }
+    if (nf == 0 || nr == 0) return 0.0;
+    face_centre /= nf;
+    ring_centre /= nr;
+    const Vec3 axis = (ring_centre - face_centre).normalized();
+    double lo = 1e300, hi = -1e300, ring = 0.0;
+    for (int q : surface_points) {
+      const int k = q / plane;
+      const double d = (out.points[static_cast<std::size_t>(q)].position - face_centre).dot(axis);
+      if (k == k_face) lo = std::min(lo, d), hi = std::max(hi, d);
+      if (k == k_ring) ring += d / nr;
+    }
+    const double gap = ring - lo;
+    return gap > 0.0 ? (hi - lo) / gap : 1e300;
+  };
+  double so = 1.0, si = 1.0;
+  place(so, si);
+  for (int round = 0; round < options.face_shrink_rounds && lattice.nz > 2; ++round) {
+    const bool origin_deep = face_depth_ratio(0, 1) > options.max_face_depth;
+    const bool insertion_deep = face_depth_ratio(lattice.nz - 1, lattice.nz - 2) > options.max_face_depth;
+    if (!origin_deep && !insertion_deep) break;
+    if (origin_deep) so *= 0.8;
+    if (insertion_deep) si *= 0.8;
+    place(so, si);
+  }
+  report.origin_face_scale = so;
+  report.insertion_face_scale = si;
+  report.located = static_cast<long>(surface_points.size());
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace fascicle

@@ -1,0 +1,99 @@
+#pragma once
+/// \file template_placement.h
+/// Where the template's surface lattice points go on the muscle (pipeline steps 3-5 of
+/// ../shared/docs/METHOD.md): both surfaces on the unit sphere, their origin and insertion areas
+/// aligned there, and every template surface point located in the muscle's sphere map.
+///
+/// Method. The template surface is the boundary of the lattice's index box (r, s, t) in [0,1]^3;
+/// its sphere map is the central projection from the box centre, a bijection because the box is
+/// convex. The origin face t = 0 and the insertion face t = 1 are opposite, so their centres are
+/// antipodal. On the muscle's sphere map (a bijection, morph/sphere_map.h) each attachment area
+/// becomes a region: the vertices within `region_radius` (of the muscle length) of an area point.
+/// Its centre is the region vertex farthest (on the sphere) from the region's border, so that it
+/// lies inside the region even when the region is not convex. A pole frame (fibres/pole_frame.h:
+/// rotation + Moebius map) sends the muscle's origin centre to the north pole and its insertion
+/// centre to the south pole, exactly; the template's frame is a rotation. In the pole frames a
+/// point has polar angle theta and azimuth phi; the correspondence keeps phi (up to a twist that
+/// turns the template's r axis towards the muscle's second principal axis) and maps theta by a
+/// function that is monotone in theta for every phi, so the whole correspondence is a
+/// homeomorphism of the sphere (neighbouring template points stay neighbours, nothing folds):
+///  - the origin face (theta below its edge Theta(phi)) goes linearly in tan(theta) onto the
+///    muscle's origin region, whose star radius R_o(phi) (first border vertex seen from the pole
+///    along azimuth phi, taken conservatively over neighbouring azimuths and shrunk by
+///    `region_margin`) bounds it; likewise the insertion face onto the insertion region;
+///  - the lateral band between the two faces goes onto the muscle's band between the regions,
+///    matching the cumulative surface-area share along the band coordinate
+///    u = (theta - R_o) / (pi - R_i - R_o) (template area measured on the template's geometry, so
+///    the families' shapes decide how densely each part of the muscle is sampled).
+/// This replaces the thesis's rotation + local pull (formula 6.2; kept in morph/align_on_sphere.h)
+/// for the decomposition: both centres are matched exactly and the whole attachment faces land
+/// inside the attachment areas, so fibre ends neither spill out of their areas nor collapse to a
+/// point.
+#include "fibres/fibre_check.h"
+#include "geometry/mesh.h"
+#include "morph/attachments.h"
+#include "morph/sphere_locator.h"
+#include "springs/lattice.h"
+
+#include <nlohmann/json_fwd.hpp>
+#include <vector>
+
+namespace fascicle {
+
+/// Options of the template placement.
+struct PlacementOptions {
+  /// An attachment region is every muscle vertex within this fraction of the muscle length of an
+  /// area point (default 0.01; fibre ends then lie within about that distance of their area).
+  double region_radius = 0.01;
+  /// The star radius of a region is multiplied by this before the template face is mapped into
+  /// it, so that face points stay clear of the region's border (default 0.9).
+  double region_margin = 0.9;
+  /// Azimuth bins for the star radius of a region (default 72, every 5 degrees).
+  int azimuth_bins = 72;
+  /// The two regions' star radii are scaled down together where they would leave less than this
+  /// polar-angle gap (radians) for the lateral band (default 0.3).
+  double min_band = 0.3;
+  /// Largest depth of an attachment face on the muscle (the spread of its points along the
+  /// muscle's end axis) as a share of the distance from its shallowest point to the first lateral
+  /// ring (default 0.1, measured on the sample muscle: 0.5 leaves 90 of 1134 cells inverted, 0.1
+  /// leaves 17, 0.05 leaves 8). A face wrapped round a rounded end deeper than the first ring of fibre
+  /// points would fold the first layer of cells; the face is shrunk (by 0.8 per round) until it fits.
+  double max_face_depth = 0.1;
+  /// Largest number of shrinking rounds (default 12; 0.8^12 = 0.07 of the region's radius).
+  int face_shrink_rounds = 12;
+  /// Throws OptionError naming the first field out of range.
+  void validate() const;
+};
+
+/// What the placement did.
+struct PlacementReport {
+  int origin_region_vertices = 0, insertion_region_vertices = 0;
+  double centre_angle_deg = 0.0;   ///< angle between the two region centres on the muscle sphere
+  double moebius_scale = 1.0;      ///< scale of the muscle's pole frame (median area at the equator)
+  double twist_deg = 0.0;          ///< azimuth of the template's r axis at the origin face
+  double twist_end_deg = 0.0;      ///< ... and at the insertion face (it varies along the band)
+  double origin_radius_min_deg = 0.0, origin_radius_max_deg = 0.0;        ///< R_o(phi) range
+  double insertion_radius_min_deg = 0.0, insertion_radius_max_deg = 0.0;  ///< R_i(phi) range
+  double origin_face_scale = 1.0, insertion_face_scale = 1.0;  ///< share of R(phi) the faces use
+  long located = 0;                ///< template surface points located on the muscle
+  double seconds = 0.0;
+  nlohmann::json to_json() const;
+};
+
+/// Template surface points on the muscle: `points[q]` for every fixed (surface) point q of the
+/// lattice (other entries default, face -1).
+struct Placement {
+  std::vector<SurfacePoint> points;
+  PlacementReport report;
+};
+
+/// Places the surface points of `lattice` (index box boundary, fixed points) on `muscle`
+/// (closed genus 0) through its bijective sphere map `sphere` (#V unit vectors) and `locator`
+/// (built on it), with the attachment areas `areas` of the muscle. Method: see the file comment.
+/// Throws InputError(landmarks) when an area has no vertex within its region radius or the two
+/// regions share their centre, OptionError for bad options.
+Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sphere, const SphereLocator& locator,
+                         const Attachments& areas, const springs::Lattice& lattice,
+                         const PlacementOptions& options = {});
+
+}  // namespace fascicle

@@ -1,0 +1,184 @@
+// The decomposition: pole frames on the sphere, template placement on the muscle, the whole
+// pipeline on a synthetic muscle, bad options and bad landmarks (library and command line).
+#include "fibres/decompose.h"
+#include "fibres/fibre_grid.h"
+#include "fibres/pole_frame.h"
+#include "fibres/template_placement.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/primitives.h"
+#include "morph/sphere_locator.h"
+#include "morph/sphere_map.h"
+#include "tests/test_common.h"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+using namespace fascicle;
+
+namespace {
+
+Vec3 random_unit(std::mt19937& rng) {
+  std::normal_distribution<double> n;
+  return Vec3(n(rng), n(rng), n(rng)).normalized();
+}
+
+// A capsule along z from -5 to 5 with radius 1.5: a long, round muscle (make_capsule lies along
+// x; the cyclic permutation of the axes is a rotation, so the orientation stays outward).
+TriangleMesh capsule() {
+  TriangleMesh mesh = make_capsule(10.0, 1.5, 24);
+  for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
+  return mesh;
+}
+
+}  // namespace
+
+TEST_CASE("a pole frame sends origin and insertion to the poles and back", "[fibres][pole]") {
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 50; ++trial) {
+    const Vec3 o = random_unit(rng), i = random_unit(rng);
+    const PoleFrame frame(o, i, 0.3 + trial * 0.05);
+    CHECK((frame.to_pole(o) - Vec3(0, 0, 1)).norm() < 1e-9);
+    CHECK((frame.to_pole(i) - Vec3(0, 0, -1)).norm() < 1e-7);
+    for (int k = 0; k < 20; ++k) {
+      const Vec3 p = random_unit(rng);
+      CHECK((frame.from_pole(frame.to_pole(p)) - p).norm() < 1e-8);
+      // Orientation-preserving: a small positive triangle stays positive.
+      const Vec3 t1 = (p + 1e-3 * random_unit(rng)).normalized(), t2 = (p + 1e-3 * random_unit(rng)).normalized();
+      const double before = p.cross(t1).dot(t2);
+      const double after = frame.to_pole(p).cross(frame.to_pole(t1)).dot(frame.to_pole(t2));
+      if (std::abs(before) > 1e-12) CHECK((before > 0) == (after > 0));
+    }
+  }
+  CHECK_THROWS_AS(PoleFrame(Vec3(0, 0, 1), Vec3(0, 0, 2)), std::invalid_argument);
+}
+
+TEST_CASE("template surface points land on the muscle, faces in their areas", "[fibres][placement]") {
+  const TriangleMesh mesh = capsule();
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  const Attachments areas = automatic_attachments(mesh);
+  springs::LatticeOptions lo;
+  lo.nr = 8;
+  lo.ns = 8;
+  lo.resolution = 12;
+  const springs::Lattice lattice = springs::build_lattice(lo);
+  const Placement placement = place_template(mesh, map.positions, locator, areas, lattice);
+  const double length = muscle_length(mesh);
+  CHECK(length == Approx(10.0).epsilon(0.01));
+  double longest_edge = 0.0;
+  for (const Triangle& t : mesh.triangles)
+    for (int c = 0; c < 3; ++c)
+      longest_edge = std::max(longest_edge, (mesh.positions[t[c]] - mesh.positions[t[(c + 1) % 3]]).norm());
+  const int plane = lattice.nx * lattice.ny;
+  std::vector<double> ring_z(static_cast<std::size_t>(lattice.nz), 0.0);
+  std::vector<int> ring_n(static_cast<std::size_t>(lattice.nz), 0);
+  for (int q = 0; q < lattice.point_count(); ++q) {
+    const SurfacePoint& p = placement.points[static_cast<std::size_t>(q)];
+    if (!lattice.system.fixed[static_cast<std::size_t>(q)]) {
+      CHECK(p.face == -1);
+      continue;
+    }
+    REQUIRE(p.face >= 0);
+    const int k = q / plane;
+    ring_z[static_cast<std::size_t>(k)] += p.position.z();
+    ring_n[static_cast<std::size_t>(k)] += 1;
+    // Origin face within the region of the origin area (upper end), insertion at the lower.
+    // (inner face points: the fibre ends; the rim lies on the region's border)
+    const int i = q % lattice.nx, j = (q / lattice.nx) % lattice.ny;
+    const bool inner = i > 0 && j > 0 && i + 1 < lattice.nx && j + 1 < lattice.ny;
+    const AttachmentArea* area = k == 0 ? &areas.origin : (k == lattice.nz - 1 ? &areas.insertion : nullptr);
+    if (area && inner) {
+      double nearest = 1e300;
+      for (const SurfacePoint& a : area->points) nearest = std::min(nearest, (a.position - p.position).norm());
+      // The region: vertices within region_radius of an area point; a face point may lie in a
+      // triangle reaching one edge beyond it.
+      CHECK(nearest <= PlacementOptions{}.region_radius * length + longest_edge);
+    }
+  }
+  // Rings follow the muscle from the origin (top) to the insertion (bottom), in order.
+  for (int k = 1; k < lattice.nz; ++k)
+    CHECK(ring_z[static_cast<std::size_t>(k)] / ring_n[static_cast<std::size_t>(k)] <
+          ring_z[static_cast<std::size_t>(k - 1)] / ring_n[static_cast<std::size_t>(k - 1)]);
+  CHECK(placement.report.located == static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
+}
+
+TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "[fibres][decompose]") {
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions options;
+  const Decomposition d = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(d.fibres.lines.size() == 100);
+  for (const auto& line : d.fibres.lines) REQUIRE(line.size() == 15);
+  const FibreGrid grid = fibre_grid(d.fibres);
+  CHECK(grid.nr * grid.ns == 100);
+  const CheckReport& q = d.report.quality;
+  CHECK(q.inside_fraction == 1.0);
+  CHECK(q.attachment.origin_max <= 0.02);
+  CHECK(q.attachment.insertion_max <= 0.02);
+  CHECK(q.coverage.p95 <= 2.0);
+  // Fibres run from the origin (upper end) to the insertion.
+  for (const auto& line : d.fibres.lines) CHECK(line.front().z() > line.back().z());
+  const nlohmann::json j = d.report.to_json();
+  for (const char* key : {"sphere", "placement", "lattice", "settle", "containment", "quality", "seconds"})
+    CHECK(j.contains(key));
+}
+
+TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decompose]") {
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions zero;
+  zero.fibres = 0;
+  CHECK_THROWS_AS(decompose_repaired(mesh, {}, zero), OptionError);
+  DecomposeOptions one;
+  one.resolution = 1;
+  CHECK_THROWS_AS(decompose_repaired(mesh, {}, one), OptionError);
+  DecomposeOptions backend;
+  backend.backend = "quantum";
+  CHECK_THROWS_AS(decompose_repaired(mesh, {}, backend), OptionError);
+  CHECK_THROWS_AS(parse_rest_shape("loose"), OptionError);
+  Landmarks same;
+  same.origin = same.insertion = {Vec3(0, 0, 5.0), Vec3(0.1, 0, 5.0)};
+  same.origin_source = same.insertion_source = "same.xyz";
+  try {
+    decompose_repaired(mesh, same, {});
+    FAIL("coinciding areas accepted");
+  } catch (const InputError& e) {
+    CHECK(e.code() == ErrorCode::landmarks);
+  }
+}
+
+TEST_CASE("fascicle decompose: one-line errors with their codes and no output", "[fibres][cli]") {
+  test::TempDir dir;
+  const std::string muscle = (dir.path() / "capsule.off").string();
+  write_triangle_mesh(muscle, capsule());
+  const std::string out = (dir.path() / "fibres.vtk").string();
+  const std::string fascicle = test::program();
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --fibres 0 2>/dev/null") == 18);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --resolution 1 2>/dev/null") == 18);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(test::run_command(fascicle + " decompose " + (dir.path() / "missing.off").string() + " -o " + out +
+                          " 2>/dev/null") == 3);
+  CHECK_FALSE(std::filesystem::exists(out));
+  // Far landmarks: the landmarks code, no output.
+  const std::string far = (dir.path() / "far.xyz").string();
+  std::ofstream(far) << "0 0 500\n";
+  const std::string near = (dir.path() / "near.xyz").string();
+  std::ofstream(near) << "0 0 0\n";
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --origin " + far + " --insertion " +
+                          near + " 2>/dev/null") == 16);
+  CHECK_FALSE(std::filesystem::exists(out));
+  // A run writes the report; its exit code is 0 or the quality code (19), which then writes no
+  // fibres unless --keep-failed.
+  const std::string report = (dir.path() / "r.json").string();
+  const int code = test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --report " + report +
+                                     " --keep-failed 2>/dev/null");
+  CHECK((code == 0 || code == 19));
+  CHECK(std::filesystem::exists(out));
+  CHECK(std::filesystem::exists(report));
+  const Polylines back = read_polylines(out);
+  CHECK(back.lines.size() == 100);
+}
