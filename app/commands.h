@@ -13,6 +13,7 @@ void add_convert_command(CLI::App& app);  // fascicle convert
 void add_bench_command(CLI::App& app);    // fascicle bench ...
 void add_settle_command(CLI::App& app);   // fascicle settle
 void add_sphere_command(CLI::App& app);   // fascicle sphere
+void add_check_command(CLI::App& app);    // fascicle check
 void add_decompose_command(CLI::App& app);  // fascicle decompose
 void add_batch_command(CLI::App& app);    // fascicle batch
 void add_render_command(CLI::App& app);   // fascicle render

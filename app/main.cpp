@@ -57,6 +57,7 @@ int main(int argc, char** argv) {
   fascicle::app::add_bench_command(app);
   fascicle::app::add_settle_command(app);
   fascicle::app::add_sphere_command(app);
+  fascicle::app::add_check_command(app);
   fascicle::app::add_decompose_command(app);
   fascicle::app::add_batch_command(app);
   fascicle::app::add_render_command(app);

@@ -58,7 +58,7 @@ struct CheckOptions {
   /// How many outside points the report lists (default 10); the count covers all of them.
   int outside_listed = 10;
 
-  /// Throws OptionError naming the first field out of range (coverage_samples < 1,
+  /// Throws OptionError naming the first field out of range (coverage_samples not in [1, 1e8],
   /// end_tolerance < 0, min_inside_fraction outside [0, 1], max_inverted_cells < 0,
   /// max_coverage_p95 or max_attachment <= 0 or not finite, outside_listed < 0).
   void validate() const;
@@ -133,10 +133,13 @@ double muscle_length(const TriangleMesh& muscle);
 /// - areas: origin and insertion areas on `muscle` (morph/attachments.h).
 /// Method: see the file comment. The inside test classifies a uniform grid over the muscle's
 /// box once (cells touched by no triangle's box share one side, found by one exact test per
-/// connected region) and runs the exact test only in cells near the surface; nearest-fibre
-/// distances use a uniform grid over the segments (no brute force).
+/// connected region) and runs the exact test only in cells near the surface; coverage samples
+/// are drawn uniformly from the cells that can hold inside points and kept when inside;
+/// nearest-fibre distances come from a bounding-volume hierarchy over the segments (exact, no
+/// brute force). Independent of the thread count; the same seed gives the same figures.
 /// Throws OptionError for bad options; InputError(file_empty) when there is no fibre,
-/// InputError(malformed) when a fibre has fewer than 2 points or a point that is not finite;
+/// InputError(malformed) when a fibre has fewer than 2 points, InputError(bad_number) when a
+/// point is not finite;
 /// TopologyError when the muscle has no triangles, is not an oriented 2-manifold or has a
 /// non-positive volume; InputError(landmarks) when an area has no point.
 CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const Attachments& areas,

@@ -1,0 +1,124 @@
+// fascicle check FIBRES MUSCLE [--origin O.xyz --insertion I.xyz] [--json] [--report R.json]
+// [--strict]: the fibre quality check (fibres/fibre_check.h) on fibres from any tool. The muscle
+// is repaired with default options when it is not already a closed genus-0 manifold; areas are
+// automatic without landmark files. Prints a table (or the JSON report with --json); --strict
+// exits with code 19 (quality) when a criterion fails.
+
+#include "app/commands.h"
+#include "app/report_file.h"
+#include "fibres/fibre_check.h"
+#include "geometry/atomic_file.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/read_points.h"
+#include "morph/attachments.h"
+#include "repair/repair.h"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <memory>
+
+namespace fascicle::app {
+
+namespace {
+
+struct CheckArgs {
+  std::string fibres, muscle, origin, insertion, report;
+  bool json = false, strict = false;
+  CheckOptions options;
+  AttachmentOptions attachments;
+};
+
+/// The soup as a triangle mesh when every polygon is a triangle, else nullopt.
+bool as_triangle_mesh(const PolygonSoup& soup, TriangleMesh& mesh) {
+  mesh.positions = soup.points;
+  mesh.triangles.clear();
+  mesh.triangles.reserve(soup.polygons.size());
+  for (const auto& polygon : soup.polygons) {
+    if (polygon.size() != 3) return false;
+    mesh.triangles.push_back({polygon[0], polygon[1], polygon[2]});
+  }
+  return true;
+}
+
+void run_check(const CheckArgs& args) {
+  args.options.validate();
+  args.attachments.validate();
+  if (args.origin.empty() != args.insertion.empty())
+    throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
+  if (!args.report.empty()) {
+    check_not_same_file(args.fibres, args.report);
+    check_not_same_file(args.muscle, args.report);
+  }
+  const Polylines fibres = read_polylines(args.fibres);
+  spdlog::info("read {}: {} fibres", args.fibres, fibres.lines.size());
+  const PolygonSoup soup = read_polygon_soup(args.muscle);
+  TriangleMesh muscle;
+  std::string problem = as_triangle_mesh(soup, muscle) ? verify_genus0(muscle) : "it has faces that are not triangles";
+  const bool repaired = !problem.empty();
+  if (repaired) {
+    spdlog::info("{} is not a closed genus-0 manifold ({}): repairing it with default options", args.muscle, problem);
+    RepairResult result = repair_mesh(soup, RepairOptions{});
+    muscle = std::move(result.mesh);
+    spdlog::info("repaired {}: {} vertices, {} triangles", args.muscle, muscle.positions.size(), muscle.triangles.size());
+  }
+  const Attachments areas =
+      args.origin.empty()
+          ? automatic_attachments(muscle, args.attachments)
+          : landmark_attachments(muscle, read_points(args.origin), args.origin, read_points(args.insertion),
+                                 args.insertion, args.attachments);
+  const CheckReport report = check_fibres(fibres, muscle, areas, args.options);
+
+  nlohmann::json json = report.to_json();
+  json["fibres_file"] = args.fibres;
+  json["muscle_file"] = args.muscle;
+  json["muscle_repaired"] = repaired;
+  json["areas"] = {{"origin", areas.origin.source},
+                   {"insertion", areas.insertion.source},
+                   {"automatic", areas.automatic}};
+  if (!args.report.empty()) write_json_report(args.report, json);
+  if (args.json) {
+    const std::string text = json.dump(2);
+    std::printf("%s\n", text.c_str());
+  } else {
+    std::printf("%s", report.to_table().c_str());
+  }
+  std::fflush(stdout);
+  if (args.strict && !report.pass) {
+    std::string failed;
+    for (const auto& f : report.failed) failed += (failed.empty() ? "" : ", ") + f;
+    throw Error(ErrorCode::quality, args.fibres + ": fibres fail the quality check (" + failed + ")");
+  }
+}
+
+}  // namespace
+
+void add_check_command(CLI::App& app) {
+  auto args = std::make_shared<CheckArgs>();
+  CLI::App* cmd = app.add_subcommand("check", "Check fibres against their muscle: inside, crossing, coverage, attachment");
+  cmd->add_option("fibres", args->fibres, "Fibres (vtk, vtp, obj, csv), each from origin to insertion")->required();
+  cmd->add_option("muscle", args->muscle, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired when not closed genus 0")
+      ->required();
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
+  cmd->add_flag("--json", args->json, "Print the JSON report to stdout instead of the table");
+  cmd->add_option("--report", args->report, "Write the JSON report to this file");
+  cmd->add_flag("--strict", args->strict, "Exit with code 19 when a criterion fails");
+  cmd->add_option("--samples", args->options.coverage_samples, "Volume samples for the coverage figures")
+      ->capture_default_str();
+  cmd->add_option("--seed", args->options.seed, "Seed of the volume samples")->capture_default_str();
+  cmd->add_option("--end-tolerance", args->options.end_tolerance,
+                  "Fibre ends may lie this far outside the surface (fraction of the diagonal)")
+      ->capture_default_str();
+  cmd->add_option("--max-landmark-distance", args->attachments.max_landmark_distance,
+                  "Landmarks farther from the surface than this fraction of the diagonal are an error")
+      ->capture_default_str();
+  cmd->add_option("--end-fraction", args->attachments.end_fraction,
+                  "Automatic areas: share of the length taken at each end")
+      ->capture_default_str();
+  cmd->callback([args] { run_check(*args); });
+}
+
+}  // namespace fascicle::app

@@ -1,0 +1,412 @@
+// The fibre quality check (fibres/fibre_check.h) and `fascicle check`, on synthetic cases whose
+// figures follow from geometry: a straight square lattice of fibres in a box covers it with
+// nearest-fibre distances distributed as the distance from a uniform point of a unit square to
+// its centre (mean (sqrt 2 + ln(1 + sqrt 2)) / 6 = 0.38260, 95th percentile 0.59905 spacings).
+#include "fibres/fibre_check.h"
+#include "fibres/fibre_grid.h"
+#include "geometry/errors.h"
+#include "geometry/mesh_io.h"
+#include "geometry/mesh_stats.h"
+#include "geometry/primitives.h"
+#include "morph/attachments.h"
+#include "test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+using namespace fascicle;
+using fascicle::test::TempDir;
+
+namespace {
+
+constexpr double kSize = 10.0;  // box: x in [-kSize, kSize], y and z in [-kSize/2, kSize/2]
+
+/// The box [-s, s] x [-s/2, s/2]^2 (a cube stretched along x), 2n quads per cube edge so that
+/// the centres of an n x n lattice over the end faces are mesh vertices.
+TriangleMesh long_box(int n) {
+  TriangleMesh box = make_cube(kSize, 2 * n);
+  for (Vec3& p : box.positions) p.x() *= 2.0;
+  return box;
+}
+
+/// n x n straight fibres along x through the centres of the squares of side h = kSize / n,
+/// from x = from to x = to, `points` points each, lattice indices r along y and s along z.
+Polylines straight_lattice(int n, int points, double from = -kSize, double to = kSize) {
+  const double h = kSize / n;
+  std::vector<std::vector<Vec3>> lines;
+  std::vector<int> r, s;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      std::vector<Vec3> line;
+      for (int k = 0; k < points; ++k) {
+        const double t = static_cast<double>(k) / (points - 1);
+        line.emplace_back(from + t * (to - from), -kSize / 2 + (i + 0.5) * h, -kSize / 2 + (j + 0.5) * h);
+      }
+      lines.push_back(std::move(line));
+      r.push_back(i);
+      s.push_back(j);
+    }
+  return lattice_fibres(std::move(lines), r, s);
+}
+
+/// Automatic areas of the box; the fibres are reversed when the origin is at +x.
+Attachments areas_for(const TriangleMesh& box, Polylines& fibres) {
+  Attachments areas = automatic_attachments(box);
+  if (areas.origin.centroid().x() > 0)
+    for (auto& line : fibres.lines) std::reverse(line.begin(), line.end());
+  return areas;
+}
+
+bool has_failed(const CheckReport& report, const std::string& name) {
+  return std::find(report.failed.begin(), report.failed.end(), name) != report.failed.end();
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+int run(const std::string& args, const std::string& out = "/dev/null") {
+  return fascicle::test::run_command(fascicle::test::program() + " " + args + " > " + out + " 2>/dev/null");
+}
+
+}  // namespace
+
+TEST_CASE("straight lattice fibres in a box pass with the figures geometry predicts", "[fibres][check]") {
+  for (int n : {1, 6}) {
+    CAPTURE(n);
+    const TriangleMesh box = long_box(n);
+    Polylines fibres = straight_lattice(n, 11);
+    const Attachments areas = areas_for(box, fibres);
+    const CheckReport report = check_fibres(fibres, box, areas);
+    CHECK(report.fibres == n * n);
+    CHECK(report.points == n * n * 11);
+    CHECK(report.inside_fraction == 1.0);
+    CHECK(report.outside == 0);
+    CHECK(report.lattice);
+    CHECK(report.cells == (n - 1) * (n - 1) * 10);
+    CHECK(report.inverted_cells == 0);
+    // V = 2 s^3, F = n^2, L = 2 s: ideal spacing s / n, the lattice spacing.
+    CHECK(report.coverage.volume == Approx(2 * kSize * kSize * kSize).epsilon(1e-12));
+    CHECK(report.coverage.ideal_spacing == Approx(kSize / n).epsilon(1e-12));
+    CHECK(report.coverage.samples == 20000);
+    CHECK(report.coverage.mean == Approx(0.38260).margin(0.01));
+    CHECK(report.coverage.p95 == Approx(0.59905).margin(0.01));
+    CHECK(report.coverage.max <= std::sqrt(0.5) + 1e-9);
+    CHECK(report.attachment.muscle_length == Approx(2 * kSize).epsilon(1e-12));
+    CHECK(report.attachment.origin_max < 1e-9);
+    CHECK(report.attachment.insertion_max < 1e-9);
+    CHECK(report.length.mean == Approx(2 * kSize).epsilon(1e-12));
+    CHECK(report.length.cv == Approx(0.0).margin(1e-9));
+    CHECK(report.max_turning_angle_deg == Approx(0.0).margin(1e-6));
+    CHECK(report.pass);
+    CHECK(report.failed.empty());
+  }
+}
+
+TEST_CASE("a fibre point outside the muscle fails the inside criterion", "[fibres][check]") {
+  const TriangleMesh box = long_box(4);
+  Polylines fibres = straight_lattice(4, 11);
+  const Attachments areas = areas_for(box, fibres);
+  fibres.lines[5][4].y() = kSize;  // pokes out through the side y = s/2
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.outside == 1);
+  CHECK(report.inside_fraction == Approx(1.0 - 1.0 / (16 * 11)).epsilon(1e-12));
+  REQUIRE(report.outside_examples.size() == 1);
+  CHECK(report.outside_examples[0].fibre == 5);
+  CHECK(report.outside_examples[0].point == 4);
+  CHECK(report.outside_examples[0].distance == Approx(kSize / 2).epsilon(1e-9));
+  CHECK_FALSE(report.pass);
+  CHECK(has_failed(report, "inside"));
+
+  // An interior point exactly on the surface is not strictly inside.
+  Polylines on_surface = straight_lattice(4, 11);
+  areas_for(box, on_surface);
+  on_surface.lines[0][5].y() = -kSize / 2;
+  CHECK(check_fibres(on_surface, box, areas).outside == 1);
+}
+
+TEST_CASE("the grid-accelerated inside test agrees with the exact test point by point", "[fibres][check]") {
+  // Random points in and around a sphere, many of them in grid cells near the surface.
+  const TriangleMesh sphere = make_icosphere(3, 10.0);
+  const SurfaceQuery query(sphere);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-10.5, 10.5);
+  Polylines fibres;
+  long expected_outside = 0;
+  for (int f = 0; f < 400; ++f) {
+    std::vector<Vec3> line;
+    for (int k = 0; k < 6; ++k) {
+      line.emplace_back(u(rng), u(rng), u(rng));
+      if (query.side(line.back()) != Side::inside) ++expected_outside;
+    }
+    fibres.lines.push_back(std::move(line));
+  }
+  Attachments areas = automatic_attachments(sphere);
+  CheckOptions options;
+  options.end_tolerance = 0.0;  // end points judged like the others
+  options.coverage_samples = 1000;
+  options.outside_listed = 100000;
+  const CheckReport report = check_fibres(fibres, sphere, query, areas, options);
+  REQUIRE(expected_outside > 100);
+  CHECK(report.outside == expected_outside);
+  for (const OutsidePoint& o : report.outside_examples) {
+    CHECK(query.side(fibres.lines[static_cast<std::size_t>(o.fibre)][static_cast<std::size_t>(o.point)]) != Side::inside);
+    CHECK(o.distance == Approx(query.closest_point(o.position).distance));
+  }
+}
+
+TEST_CASE("fibre ends may lie on or just outside the surface within the end tolerance", "[fibres][check]") {
+  const TriangleMesh box = long_box(2);
+  const double diagonal = bounding_box(box.positions).diagonal();
+  Polylines fibres = straight_lattice(2, 5);
+  const Attachments areas = areas_for(box, fibres);
+  CHECK(check_fibres(fibres, box, areas).outside == 0);  // ends exactly on the end faces
+  const double sign = fibres.lines[0].front().x() < 0 ? -1.0 : 1.0;
+  fibres.lines[0].front().x() += sign * 0.5e-4 * diagonal;  // outside, within 1e-4 of the diagonal
+  CHECK(check_fibres(fibres, box, areas).outside == 0);
+  fibres.lines[0].front().x() += sign * 1e-4 * diagonal;  // now 1.5e-4 out
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.outside == 1);
+  CHECK(report.outside_examples.at(0).point == 0);
+  CheckOptions wide;
+  wide.end_tolerance = 2e-4;
+  CHECK(check_fibres(fibres, box, areas, wide).outside == 0);
+}
+
+TEST_CASE("a folded lattice has inverted cells and a mirrored one has none", "[fibres][check]") {
+  const TriangleMesh box = long_box(4);
+  Polylines fibres = straight_lattice(4, 11);
+  const Attachments areas = areas_for(box, fibres);
+  // Mirror the lattice (r -> 3 - r): the whole frame flips, no cell is folded relative to it.
+  Polylines mirrored = fibres;
+  for (double& r : mirrored.cell_data[0].values) r = 3 - r;
+  const CheckReport mirror_report = check_fibres(mirrored, box, areas);
+  CHECK(mirror_report.cells == 3 * 3 * 10);
+  CHECK(mirror_report.inverted_cells == 0);
+
+  // Fibres (1,1) and (2,1) swap places for points 3..5: they cross, and the cells between them
+  // and their neighbours fold.
+  const int a = 1 + 4 * 1, b = 2 + 4 * 1;
+  for (int k = 3; k <= 5; ++k) std::swap(fibres.lines[a][k], fibres.lines[b][k]);
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.inverted_cells > 0);
+  CHECK(report.inverted_cells <= 3 * 3 * 4);  // only cells touching points 3..5 (k = 2..5)
+  CHECK(report.inside_fraction == 1.0);
+  CHECK(has_failed(report, "inverted_cells"));
+  CHECK_FALSE(report.pass);
+
+  // A collapsed cell (two neighbouring fibres on top of each other) is flat: inverted too.
+  Polylines collapsed = straight_lattice(4, 11);
+  areas_for(box, collapsed);
+  collapsed.lines[0] = collapsed.lines[1];
+  CHECK(check_fibres(collapsed, box, areas).inverted_cells >= 10);
+}
+
+TEST_CASE("fibres without lattice arrays are checked without cells", "[fibres][check]") {
+  const TriangleMesh box = long_box(3);
+  Polylines fibres = straight_lattice(3, 7);
+  const Attachments areas = areas_for(box, fibres);
+  fibres.cell_data.clear();
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK_FALSE(report.lattice);
+  CHECK(report.cells == 0);
+  CHECK(report.inverted_cells == 0);
+  CHECK(report.pass);
+}
+
+TEST_CASE("fibres ending far from their areas fail the attachment criterion", "[fibres][check]") {
+  const TriangleMesh box = long_box(3);
+  // From x = -s/2 to x = s: the -x ends stop a quarter of the length short of the -x end.
+  Polylines fibres = straight_lattice(3, 11, -kSize / 2, kSize);
+  Attachments areas = automatic_attachments(box);
+  const bool origin_at_minus_x = areas.origin.centroid().x() < 0;
+  if (!origin_at_minus_x) for (auto& line : fibres.lines) std::reverse(line.begin(), line.end());
+  const CheckReport report = check_fibres(fibres, box, areas);
+  const double short_end = origin_at_minus_x ? report.attachment.origin_max : report.attachment.insertion_max;
+  const double full_end = origin_at_minus_x ? report.attachment.insertion_max : report.attachment.origin_max;
+  // The nearest area point is at least 0.3 s away (the areas reach 0.2 s in from the end face).
+  CHECK(short_end > 0.3 * kSize / (2 * kSize));
+  CHECK(full_end < 1e-9);
+  CHECK(report.inside_fraction == 1.0);
+  CHECK(has_failed(report, "attachment"));
+  CHECK_FALSE(report.pass);
+
+  // Reversed fibres (insertion to origin) fail too: each end is at the wrong area.
+  Polylines reversed = straight_lattice(3, 11);
+  if (origin_at_minus_x) for (auto& line : reversed.lines) std::reverse(line.begin(), line.end());
+  const CheckReport wrong_way = check_fibres(reversed, box, areas);
+  CHECK(wrong_way.attachment.origin_max > 0.5);
+  CHECK(has_failed(wrong_way, "attachment"));
+}
+
+TEST_CASE("fibres bunched in one corner fail the coverage criterion", "[fibres][check]") {
+  const TriangleMesh box = long_box(4);
+  Polylines fibres = straight_lattice(4, 11);
+  const Attachments areas = areas_for(box, fibres);
+  // Squeeze the lattice into the quarter y, z < 0 (r, s and the ends keep their order).
+  for (auto& line : fibres.lines)
+    for (Vec3& p : line) {
+      p.y() = -kSize / 2 + 0.25 * (p.y() + kSize / 2);
+      p.z() = -kSize / 2 + 0.25 * (p.z() + kSize / 2);
+    }
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.inverted_cells == 0);
+  CHECK(report.inside_fraction == 1.0);
+  CHECK(report.coverage.p95 > 2.0);
+  CHECK(has_failed(report, "coverage"));
+}
+
+TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
+  const TriangleMesh box = long_box(1);
+  Polylines fibres;
+  fibres.lines = {{Vec3(-kSize, 0, 0), Vec3(0, 0, 0), Vec3(0, 2, 0), Vec3(0, 2, 0), Vec3(kSize, 2, 0)},
+                  {Vec3(-kSize, 1, 1), Vec3(kSize, 1, 1)}};
+  Attachments areas = automatic_attachments(box);
+  const CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.length.min == Approx(2 * kSize));
+  CHECK(report.length.max == Approx(2 * kSize + 2));
+  CHECK(report.length.mean == Approx(2 * kSize + 1));
+  CHECK(report.length.cv == Approx(1.0 / (2 * kSize + 1)));
+  // The repeated point has no direction; the corners turn by 90 degrees.
+  CHECK(report.max_turning_angle_deg == Approx(90.0).epsilon(1e-12));
+}
+
+TEST_CASE("the check is deterministic for a seed and reports as JSON", "[fibres][check]") {
+  const TriangleMesh box = long_box(3);
+  Polylines fibres = straight_lattice(3, 7);
+  const Attachments areas = areas_for(box, fibres);
+  CheckOptions options;
+  options.coverage_samples = 5000;
+  const CheckReport a = check_fibres(fibres, box, areas, options);
+  const CheckReport b = check_fibres(fibres, box, areas, options);
+  CHECK(a.coverage.mean == b.coverage.mean);
+  CHECK(a.coverage.p95 == b.coverage.p95);
+  options.seed = 2;
+  CHECK(check_fibres(fibres, box, areas, options).coverage.mean != a.coverage.mean);
+  const nlohmann::json j = a.to_json();
+  CHECK(j.at("inside_fraction").get<double>() == a.inside_fraction);
+  CHECK(j.at("inverted_cells").get<long>() == a.inverted_cells);
+  CHECK(j.at("coverage").at("p95").get<double>() == a.coverage.p95);
+  CHECK(j.at("coverage").at("samples").get<int>() == 5000);
+  CHECK(j.at("attachment").at("origin_max").get<double>() == a.attachment.origin_max);
+  CHECK(j.at("length").at("cv").get<double>() == a.length.cv);
+  CHECK(j.at("pass").get<bool>() == a.pass);
+  CHECK(j.at("thresholds").at("max_coverage_p95").get<double>() == 2.0);
+  const std::string table = a.to_table();
+  CHECK(table.find("inside_fraction") != std::string::npos);
+  CHECK(table.find("result: pass") != std::string::npos);
+}
+
+TEST_CASE("bad options and inputs are refused", "[fibres][check]") {
+  const TriangleMesh box = long_box(1);
+  Polylines fibres = straight_lattice(1, 3);
+  const Attachments areas = areas_for(box, fibres);
+  CheckOptions options;
+  options.coverage_samples = 0;
+  CHECK_THROWS_AS(check_fibres(fibres, box, areas, options), OptionError);
+  options = {};
+  options.min_inside_fraction = 1.5;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.end_tolerance = -1;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.max_attachment = 0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+
+  CHECK_THROWS_AS(check_fibres(Polylines{}, box, areas), InputError);
+  Polylines single = fibres;
+  single.lines[0].resize(1);
+  CHECK_THROWS_AS(check_fibres(single, box, areas), InputError);
+  Polylines nan = fibres;
+  nan.lines[0][1].x() = std::nan("");
+  CHECK_THROWS_AS(check_fibres(nan, box, areas), InputError);
+
+  TriangleMesh inverted = box;
+  for (Triangle& t : inverted.triangles) std::swap(t[1], t[2]);
+  CHECK_THROWS_AS(check_fibres(fibres, inverted, areas), TopologyError);
+  CHECK_THROWS_AS(check_fibres(fibres, TriangleMesh{}, areas), TopologyError);
+  Attachments empty = areas;
+  empty.insertion.points.clear();
+  CHECK_THROWS_AS(check_fibres(fibres, box, empty), InputError);
+}
+
+TEST_CASE("fascicle check prints a table or JSON and writes the report and exits 19 with --strict", "[fibres][check][cli]") {
+  TempDir dir;
+  const TriangleMesh box = long_box(3);
+  Polylines good = straight_lattice(3, 9);
+  const Attachments areas = areas_for(box, good);
+  const std::string mesh = dir.file("box.off"), fibres = dir.file("fibres.vtk");
+  write_triangle_mesh(mesh, box);
+  write_polylines(fibres, good);
+
+  const std::string out = dir.file("out.txt");
+  REQUIRE(run("check " + fibres + " " + mesh, out) == 0);
+  CHECK(read_text(out).find("result: pass") != std::string::npos);
+
+  const std::string report = dir.file("r.json");
+  REQUIRE(run("check " + fibres + " " + mesh + " --json --report " + report, out) == 0);
+  const nlohmann::json printed = nlohmann::json::parse(read_text(out));
+  const nlohmann::json written = nlohmann::json::parse(read_text(report));
+  CHECK(printed == written);
+  CHECK(printed.at("inside_fraction").get<double>() == 1.0);
+  CHECK(printed.at("inverted_cells").get<long>() == 0);
+  CHECK(printed.at("lattice").get<bool>());
+  CHECK(printed.at("muscle_repaired").get<bool>() == false);
+  CHECK(printed.at("pass").get<bool>());
+
+  // Landmark files replace the automatic areas.
+  const double origin_x = good.lines[0].front().x();
+  std::ofstream(dir.file("o.xyz")) << origin_x << " 0 0\n" << origin_x << " 1 1\n";
+  std::ofstream(dir.file("i.xyz")) << -origin_x << " 0 0\n";
+  REQUIRE(run("check " + fibres + " " + mesh + " --json --origin " + dir.file("o.xyz") + " --insertion " +
+                  dir.file("i.xyz"),
+              out) == 0);
+  const nlohmann::json landmarks = nlohmann::json::parse(read_text(out));
+  CHECK(landmarks.at("areas").at("automatic").get<bool>() == false);
+  CHECK(landmarks.at("inside_fraction").get<double>() == 1.0);
+
+  // A failing set: exit 0 without --strict, 19 with it (the report is still written).
+  Polylines bad = good;
+  bad.lines[4][4].z() = 3 * kSize;
+  const std::string bad_file = dir.file("bad.csv");
+  write_polylines(bad_file, bad);
+  CHECK(run("check " + bad_file + " " + mesh, out) == 0);
+  CHECK(read_text(out).find("FAIL: inside") != std::string::npos);
+  const std::string bad_report = dir.file("bad.json");
+  CHECK(run("check " + bad_file + " " + mesh + " --strict --report " + bad_report) == 19);
+  CHECK(nlohmann::json::parse(read_text(bad_report)).at("outside_points").get<long>() == 1);
+
+  // Errors: missing files (3), unreadable fibres (10), half the landmarks (18).
+  CHECK(run("check " + dir.file("missing.vtk") + " " + mesh) == 3);
+  CHECK(run("check " + fibres + " " + dir.file("missing.off")) == 3);
+  std::ofstream(dir.file("broken.csv")) << "fibre,r,s,point,x,y,z\n0,0,0,0,1,2\n";
+  CHECK(run("check " + dir.file("broken.csv") + " " + mesh) == 10);
+  CHECK(run("check " + fibres + " " + mesh + " --origin " + dir.file("o.xyz")) == 18);
+}
+
+TEST_CASE("fascicle check repairs a muscle that is not closed genus 0", "[fibres][check][cli]") {
+  TempDir dir;
+  const TriangleMesh box = long_box(3);
+  Polylines fibres = straight_lattice(3, 9);
+  areas_for(box, fibres);
+  // Drop one triangle: an open mesh the inside test cannot use until repaired.
+  TriangleMesh open = box;
+  open.triangles.erase(open.triangles.begin() + 7);
+  write_triangle_mesh(dir.file("open.off"), open);
+  write_polylines(dir.file("f.vtp"), fibres);
+  const std::string out = dir.file("out.json");
+  REQUIRE(run("check " + dir.file("f.vtp") + " " + dir.file("open.off") + " --json", out) == 0);
+  const nlohmann::json j = nlohmann::json::parse(read_text(out));
+  CHECK(j.at("muscle_repaired").get<bool>());
+  CHECK(j.at("inside_fraction").get<double>() == 1.0);
+  CHECK(j.at("coverage").at("volume").get<double>() == Approx(2 * kSize * kSize * kSize).epsilon(1e-3));
+}
