@@ -282,7 +282,7 @@ double percentile(std::vector<double> values, double q) {
 /// r, b along s, c along the fibre) is split into the six tetrahedra of the Kuhn triangulation
 /// around the diagonal x_000 - x_111; with the permutation's parity applied, all six have the
 /// same sign as the lattice's frame (r, s, fibre) when the cell is not folded.
-void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, CheckReport& report) {
+void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int listed, CheckReport& report) {
   static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
   static const double parity[6] = {1, 1, 1, -1, -1, -1};
   struct Cell {
@@ -290,6 +290,7 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, CheckR
   };
   std::vector<std::array<double, 6>> volumes;
   std::vector<std::array<double, 6>> scales;
+  std::vector<std::array<int, 3>> where;  // (r, s, k) of each cell
   for (int s = 0; s + 1 < grid.ns; ++s)
     for (int r = 0; r + 1 < grid.nr; ++r) {
       const int l00 = grid.at(r, s), l10 = grid.at(r + 1, s), l01 = grid.at(r, s + 1), l11 = grid.at(r + 1, s + 1);
@@ -313,6 +314,7 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, CheckR
           scale[static_cast<std::size_t>(t)] = a.norm() * b.norm() * c.norm() / 6.0;
         }
         volumes.push_back(vol);
+        where.push_back({r, s, k});
         scales.push_back(scale);
       }
     }
@@ -330,6 +332,7 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, CheckR
       if (!(v > 1e-12 * scales[c][static_cast<std::size_t>(t)])) bad = true;
     }
     inverted += bad ? 1 : 0;
+    if (bad && static_cast<int>(report.inverted_examples.size()) < listed) report.inverted_examples.push_back(where[c]);
   }
   report.inverted_cells = inverted;
 }
@@ -454,7 +457,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   report.lattice = grid.is_lattice();
   report.lattice_nr = grid.nr;
   report.lattice_ns = grid.ns;
-  if (report.lattice) count_inverted_cells(fibres, grid, report);
+  if (report.lattice) count_inverted_cells(fibres, grid, options.outside_listed, report);
 
   // ---- lengths and turning angles ----
   std::vector<double> lengths(fibres.lines.size());
@@ -577,6 +580,8 @@ nlohmann::json CheckReport::to_json() const {
                             {"point", o.point},
                             {"position", {o.position.x(), o.position.y(), o.position.z()}},
                             {"distance_to_surface", o.distance}});
+  nlohmann::json inverted_list = nlohmann::json::array();
+  for (const auto& c : inverted_examples) inverted_list.push_back({{"r", c[0]}, {"s", c[1]}, {"k", c[2]}});
   return {
       {"fibres", fibres},
       {"points", points},
@@ -589,6 +594,7 @@ nlohmann::json CheckReport::to_json() const {
       {"lattice_ns", lattice_ns},
       {"cells", cells},
       {"inverted_cells", inverted_cells},
+      {"inverted_examples", inverted_list},
       {"coverage",
        {{"mean", coverage.mean},
         {"p95", coverage.p95},
@@ -647,6 +653,9 @@ std::string CheckReport::to_table() const {
   out += "length mean " + fmt_double(length.mean) + ", min " + fmt_double(length.min) + ", max " +
          fmt_double(length.max) + ", cv " + fmt_double(length.cv) + "; largest turning angle " +
          fmt_double(max_turning_angle_deg) + " deg\n";
+  for (const auto& c : inverted_examples)
+    out += "inverted: cell r " + std::to_string(c[0]) + " s " + std::to_string(c[1]) + " between points " +
+           std::to_string(c[2]) + " and " + std::to_string(c[2] + 1) + "\n";
   for (const OutsidePoint& o : outside_examples)
     out += "outside: fibre " + std::to_string(o.fibre) + " point " + std::to_string(o.point) + " at (" +
            fmt_double(o.position.x()) + ", " + fmt_double(o.position.y()) + ", " + fmt_double(o.position.z()) +

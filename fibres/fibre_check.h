@@ -30,6 +30,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -55,7 +56,8 @@ struct CheckOptions {
   /// Pass threshold: largest acceptable attachment distance, as a fraction of the muscle length
   /// (default 0.02).
   double max_attachment = 0.02;
-  /// How many outside points the report lists (default 10); the count covers all of them.
+  /// How many outside points (and inverted cells) the report lists (default 10); the counts
+  /// cover all of them.
   int outside_listed = 10;
 
   /// Throws OptionError naming the first field out of range (coverage_samples not in [1, 1e8],
@@ -107,6 +109,9 @@ struct CheckReport {
   int lattice_nr = 0, lattice_ns = 0;     ///< lattice index ranges (0 when not a lattice)
   long cells = 0;                         ///< lattice cells checked (0 when not a lattice)
   long inverted_cells = 0;                ///< cells with an inverted or flat tetrahedron
+  /// (r, s, k) of the first options.outside_listed inverted cells: the cell between fibres
+  /// (r..r+1, s..s+1) and points k, k+1.
+  std::vector<std::array<int, 3>> inverted_examples;
   CoverageFigures coverage;
   AttachmentFigures attachment;
   LengthFigures length;

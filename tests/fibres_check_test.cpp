@@ -191,6 +191,7 @@ TEST_CASE("a folded lattice has inverted cells and a mirrored one has none", "[f
   const CheckReport mirror_report = check_fibres(mirrored, box, areas);
   CHECK(mirror_report.cells == 3 * 3 * 10);
   CHECK(mirror_report.inverted_cells == 0);
+  CHECK(mirror_report.inverted_examples.empty());
 
   // Fibres (1,1) and (2,1) swap places for points 3..5: they cross, and the cells between them
   // and their neighbours fold.
@@ -199,6 +200,13 @@ TEST_CASE("a folded lattice has inverted cells and a mirrored one has none", "[f
   const CheckReport report = check_fibres(fibres, box, areas);
   CHECK(report.inverted_cells > 0);
   CHECK(report.inverted_cells <= 3 * 3 * 4);  // only cells touching points 3..5 (k = 2..5)
+  REQUIRE_FALSE(report.inverted_examples.empty());
+  CHECK(static_cast<long>(report.inverted_examples.size()) == std::min<long>(report.inverted_cells, 10));
+  for (const auto& c : report.inverted_examples) {
+    CHECK(c[0] <= 2);              // a cell next to fibre (1,1) or (2,1)
+    CHECK(c[1] <= 1);
+    CHECK((c[2] >= 2 && c[2] <= 5));
+  }
   CHECK(report.inside_fraction == 1.0);
   CHECK(has_failed(report, "inverted_cells"));
   CHECK_FALSE(report.pass);
