@@ -59,7 +59,10 @@ void run_decompose(const DecomposeArgs& args) {
     const CheckReport& q = result.report.quality;
     if (!q.pass) {
       if (!args.report.empty()) write_json_report(args.report, report);
-      if (args.keep_failed) write_polylines(args.output, result.fibres);
+      if (args.keep_failed) {
+        if (!args.repaired_output.empty()) write_triangle_mesh(args.repaired_output, result.muscle);
+        write_polylines(args.output, result.fibres);
+      }
       std::string failed;
       for (const std::string& f : q.failed) failed += (failed.empty() ? "" : ", ") + f;
       throw Error(ErrorCode::quality, "decompose: the fibres fail the check (" + failed + ")" + std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
