@@ -109,11 +109,14 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
       double local = 0.0;
       bool ok = true;
       for (int c = begin; c < end; ++c) {
-        // det(p, b, c) = (b x c) . p; written relative to p for accuracy on small triangles.
+        // det(p, b, d) = (b x d) . p is linear in p with gradient m = b x d; its value is taken
+        // relative to p for accuracy on small triangles. (The chord normal (b - p) x (d - p)
+        // has the same component along p but almost no tangential one, so it is not the
+        // gradient: with it the Newton steps went nearly nowhere and most sweeps were wasted.)
         const Vec3& b = x[adj.corner_next[c]];
         const Vec3& d = x[adj.corner_prev[c]];
-        const Vec3 n = (b - p).cross(d - p);
-        const double det = n.dot(p);
+        const Vec3 m = b.cross(d);
+        const double det = (b - p).cross(d - p).dot(p);
         if (!(det > 0.0)) {
           ok = false;
           break;
@@ -121,8 +124,8 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
         const double w = a2[adj.corner_face[c]];
         before.push_back(det);
         local += w / det;
-        g -= (w / (det * det)) * n;
-        h += (2.0 * w / (det * det * det)) * n * n.transpose();
+        g -= (w / (det * det)) * m;
+        h += (2.0 * w / (det * det * det)) * m * m.transpose();
       }
       if (!ok) continue;
       // Tangent frame at p.
@@ -135,6 +138,8 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
       const Eigen::Matrix2d h2 = frame.transpose() * h * frame + (-g.dot(p)) * Eigen::Matrix2d::Identity();
       Eigen::Vector2d y = -h2.ldlt().solve(g2);
       if (!y.allFinite()) continue;
+      // Never more than a quarter radian in one step.
+      if (y.norm() > 0.25) y *= 0.25 / y.norm();
       bool moved = false;
       for (int attempt = 0; attempt < 10; ++attempt, y *= 0.5) {
         const Vec3 q = (p + frame * y).normalized();
