@@ -98,9 +98,16 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
   double energy = total_energy();
   if (!std::isfinite(energy)) return 0;  // not a valid start: nothing to balance safely
   std::vector<double> before;
+  // Active set: a vertex is relaxed again only when it or a neighbour moved by more than
+  // `still` (1e-3 of the mean edge length) in the sweep before; the rest is already balanced
+  // locally and would only cost time.
+  const double still = 1e-3 * std::sqrt(4.0 * M_PI / static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1)));
+  std::vector<char> active(nv, 1), next_active(nv, 0);
   int sweep = 0;
   for (; sweep < max_sweeps; ++sweep) {
+    std::fill(next_active.begin(), next_active.end(), 0);
     for (int v = 0; v < nv; ++v) {
+      if (!active[v]) continue;
       const int begin = adj.corner_start[v], end = adj.corner_start[v + 1];
       before.clear();
       const Vec3 p = x[v];
@@ -159,11 +166,16 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
         if (valid && trial <= local) {
           x[v] = q;
           moved = true;
+          if (y.norm() > still) {
+            next_active[v] = 1;
+            for (int i = adj.neighbour_start[v]; i < adj.neighbour_start[v + 1]; ++i) next_active[adj.neighbours[i]] = 1;
+          }
           break;
         }
       }
       if (!moved) ++rejected;
     }
+    active.swap(next_active);
     if ((sweep + 1) % 5 == 0 || sweep + 1 == max_sweeps) {
       const double next = total_energy();
       const bool done = energy - next < tolerance * 5.0 * energy;
