@@ -1,6 +1,8 @@
-// fascicle sphere IN -o OUT [--report R.json] [--sphere-method tutte|relax]: repairs the mesh,
-// maps it onto the unit sphere (same connectivity) and reports the map's quality; with landmark
-// files (or automatically) also the attachment areas' centres on the sphere.
+// fascicle sphere IN -o OUT [--report R.json] [--sphere-method tutte|relax]
+//                 [--origin O.xyz --insertion I.xyz]: repairs the mesh, maps it onto the unit
+// sphere (same connectivity) and reports the map's quality; with landmark files (or
+// automatically) also the attachment areas' centres on the sphere, and how well the sphere map
+// of the `parallel` template's lattice surface aligns to them (pipeline step 4).
 
 #include "app/commands.h"
 #include "app/report_file.h"
@@ -8,13 +10,20 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
 #include "geometry/read_points.h"
+#include "morph/align_on_sphere.h"
 #include "morph/attachments.h"
+#include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
 #include "repair/repair.h"
+#if FASCICLE_HAVE_SPRINGS
+#include "springs/lattice.h"
+#endif
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 
 namespace fascicle::app {
@@ -36,6 +45,64 @@ nlohmann::json area_json(const AttachmentArea& area, const SphereMap& map, const
           {"surface_centroid", {s.x(), s.y(), s.z()}},
           {"sphere_centre", {c.x(), c.y(), c.z()}}};
 }
+
+#if FASCICLE_HAVE_SPRINGS
+/// Normalised mean of the sphere images of `vertices`.
+Vec3 mean_direction(const std::vector<Vec3>& sphere, const std::vector<int>& vertices) {
+  Vec3 c = Vec3::Zero();
+  for (int v : vertices) c += sphere[v];
+  return c.normalized();
+}
+
+/// Aligns the sphere map of the default (`parallel`, 100 fibres x 20) template lattice's surface
+/// to the muscle's attachment centres on its sphere map: the template's origin / insertion
+/// centres are the mean sphere directions of its t = 0 / t = 1 surface points. Returns the
+/// "alignment" object of the report.
+nlohmann::json align_template(const Vec3& target_origin, const Vec3& target_insertion, const SphereMapOptions& options) {
+  const springs::Lattice lattice = springs::build_lattice(springs::LatticeOptions{});
+  // The surface uses only the boundary points of the lattice: renumber them compactly.
+  std::vector<int> compact(lattice.system.positions.size(), -1);
+  TriangleMesh surface;
+  for (const Triangle& t : lattice.surface) {
+    Triangle c{};
+    for (int k = 0; k < 3; ++k) {
+      int& id = compact[t[k]];
+      if (id < 0) {
+        id = static_cast<int>(surface.positions.size());
+        surface.positions.push_back(lattice.system.positions[t[k]]);
+      }
+      c[k] = id;
+    }
+    surface.triangles.push_back(c);
+  }
+  auto area_vertices = [&](const std::vector<int>& points) {
+    std::vector<int> out;
+    for (int p : points)
+      if (compact[p] >= 0) out.push_back(compact[p]);
+    return out;
+  };
+  SphereMapOptions template_options = options;
+  template_options.method = SphereMethod::tutte;
+  SphereMap map = map_to_sphere(surface, template_options);
+  if (!map.report.quality.bijective())
+    throw SolverError("sphere map of the template lattice surface failed: " + map.report.failure);
+  const std::vector<int> origin = area_vertices(lattice.origin), insertion = area_vertices(lattice.insertion);
+  const SphereLocator locator(map.positions, surface.triangles);
+  const SurfacePoint o = locator.locate(mean_direction(map.positions, origin));
+  const SurfacePoint i = locator.locate(mean_direction(map.positions, insertion));
+  const AlignReport aligned = align_on_sphere(surface.triangles, map.positions, o, i, target_origin, target_insertion);
+  const SphereQuality after = measure_sphere_map(surface, map.positions);
+  nlohmann::json j = aligned.to_json();
+  j["template"] = {{"kind", "parallel"},
+                   {"surface_vertices", surface.positions.size()},
+                   {"surface_triangles", surface.triangles.size()},
+                   {"sphere_map", map.report.to_json()}};
+  j["flipped_after"] = after.flipped;
+  j["degenerate_after"] = after.degenerate;
+  j["bijective_after"] = after.bijective();
+  return j;
+}
+#endif
 
 void run_sphere(const SphereArgs& args) {
   SphereMapOptions options = args.options;
@@ -64,12 +131,23 @@ void run_sphere(const SphereArgs& args) {
     report["sphere"] = map.report.to_json();
     report["origin"] = area_json(areas.origin, map, mesh);
     report["insertion"] = area_json(areas.insertion, map, mesh);
-    report["status"] = map.report.status;
+    report["attachments"] = areas.automatic ? "automatic" : "landmarks";
     if (map.report.status != "ok") {
+      report["status"] = map.report.status;
       if (!args.report.empty()) write_json_report(args.report, report);
       throw SolverError("sphere map (" + map.report.method + ") failed: " + map.report.failure +
                         "; no output written" + (args.report.empty() ? "" : ", details in " + args.report));
     }
+#if FASCICLE_HAVE_SPRINGS
+    const Vec3 target_o = sphere_centre(areas.origin, map.positions, mesh.triangles);
+    const Vec3 target_i = sphere_centre(areas.insertion, map.positions, mesh.triangles);
+    report["alignment"] = align_template(target_o, target_i, options);
+    spdlog::info("template aligned: origin error {:.3g} deg, insertion error {:.3g} deg, {} flipped",
+                 report["alignment"]["origin_error_deg"].get<double>(),
+                 report["alignment"]["insertion_error_deg"].get<double>(),
+                 report["alignment"]["flipped_after"].get<long>());
+#endif
+    report["status"] = map.report.status;
     write_triangle_mesh(args.output, TriangleMesh{map.positions, mesh.triangles});
     if (!args.report.empty()) write_json_report(args.report, report);
     const SphereQuality& q = map.report.quality;

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -38,6 +39,18 @@ TEST_CASE("fascicle sphere writes a bijective sphere mesh and a report", "[morph
   CHECK(report.at("sphere").at("quality").at("degenerate") == 0);
   CHECK(report.at("origin").at("source") == "automatic");
   CHECK(report.at("origin").at("sphere_centre").size() == 3);
+  // The template's lattice surface map is aligned to the automatic areas without a flip.
+  CHECK(report.at("attachments") == "automatic");
+  const nlohmann::json& align = report.at("alignment");
+  CHECK(align.at("template").at("kind") == "parallel");
+  CHECK(align.at("template").at("sphere_map").at("status") == "ok");
+  CHECK(align.at("flipped") == 0);
+  CHECK(align.at("flipped_after") == 0);
+  CHECK(align.at("degenerate_after") == 0);
+  CHECK(align.at("bijective_after") == true);
+  CHECK(align.at("origin_error_deg").get<double>() < 1e-6);
+  CHECK(align.at("insertion_error_deg").get<double>() <= align.at("insertion_error_rotation_deg").get<double>() + 1e-9);
+  CHECK(align.at("insertion_error_deg").get<double>() < 1.0);
 }
 
 TEST_CASE("fascicle sphere names the far landmark file and exits with the landmarks code", "[morph][cli]") {
@@ -56,6 +69,8 @@ TEST_CASE("fascicle sphere names the far landmark file and exits with the landma
   const std::string err = slurp(dir.file("err.txt"));
   CHECK(err.find("far.xyz") != std::string::npos);
   CHECK(err.find("landmark 2") != std::string::npos);
+  CHECK(err.find("from the muscle surface") != std::string::npos);
+  CHECK(std::count(err.begin(), err.end(), '\n') == 1);  // one line
   CHECK_FALSE(std::ifstream(dir.file("out.off")).good());
   // Only one of the two files: a usage error with its own code.
   CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("out.off") +
@@ -91,9 +106,22 @@ TEST_CASE("the real far landmark file of the corpus is refused", "[morph][cli][c
                           " --insertion " + lhdl + "LHDL_R_M081_GluteusMaximus.insertion-far.xyz 2> " +
                           dir.file("err.txt");
   CHECK(test::run_command(cmd) == 16);
-  CHECK(slurp(dir.file("err.txt")).find("insertion-far.xyz") != std::string::npos);
-  // The genuine landmark files are accepted.
+  const std::string err = slurp(dir.file("err.txt"));
+  CHECK(err.find("insertion-far.xyz") != std::string::npos);
+  CHECK(err.find("from the muscle surface") != std::string::npos);
+  CHECK(std::count(err.begin(), err.end(), '\n') == 1);  // one line
+  CHECK_FALSE(std::ifstream(dir.file("out.off")).good());
+  // The genuine landmark files are accepted, and the template aligns to their areas.
   CHECK(test::run_command(test::program() + " -q sphere " + lhdl + "LHDL_R_M081_GluteusMaximus_smooth.312.vtk -o " +
                           dir.file("ok.off") + " --origin " + lhdl + "LHDL_R_M081_GluteusMaximus.origin.xyz" +
-                          " --insertion " + lhdl + "LHDL_R_M081_GluteusMaximus.insertion.xyz") == 0);
+                          " --insertion " + lhdl + "LHDL_R_M081_GluteusMaximus.insertion.xyz --report " +
+                          dir.file("ok.json")) == 0);
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir.file("ok.json")));
+  CHECK(report.at("attachments") == "landmarks");
+  CHECK(report.at("insertion").at("source").get<std::string>().find("insertion.xyz") != std::string::npos);
+  const nlohmann::json& align = report.at("alignment");
+  CHECK(align.at("flipped_after") == 0);
+  CHECK(align.at("bijective_after") == true);
+  CHECK(align.at("origin_error_deg").get<double>() < 1e-6);
+  CHECK(align.at("insertion_error_deg").get<double>() < align.at("insertion_error_rotation_deg").get<double>());
 }

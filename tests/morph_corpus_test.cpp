@@ -1,7 +1,8 @@
 // Every corpus muscle, after repair, maps onto the sphere with no flipped and no degenerate
 // triangle (the thesis managed 3 of its muscles). Two repaired muscles are known failures of the
-// current method (see docs/BENCHMARKS.md, "Sphere map"): for them the test demands a clear
-// failure report instead of a silent bad map, and says when they start to pass.
+// current method (see docs/BENCHMARKS.md, "Sphere map", for the root cause: flat slivers near
+// one end that every lift bending lines into latitude circles turns over): for them the test
+// demands a clear failure report instead of a silent bad map, and says when they start to pass.
 #include "geometry/mesh_io.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
