@@ -8,6 +8,7 @@
 
 #include <Eigen/SVD>
 #include <chrono>
+#include <unordered_map>
 #include <tuple>
 #include <cmath>
 
@@ -218,6 +219,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("backend: unknown backend '" + backend + "' (valid: cpu, gl, auto)");
   if (cast_rounds < 0 || cast_rounds > 100)
     throw OptionError("cast_rounds: must be in 0..100, got " + std::to_string(cast_rounds));
+  if (soft_contact_rounds < 0 || soft_contact_rounds > 100)
+    throw OptionError("soft_contact_rounds: must be in 0..100, got " + std::to_string(soft_contact_rounds));
   if (contact_rounds < 0 || contact_rounds > 100)
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
@@ -352,14 +355,27 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   // them anyway.
   springs::SettleOptions rough = options.settle;
   if (rough.tolerance > 0.0) rough.tolerance = std::max(rough.tolerance, 1e-4);
+  // Soft contact: an outside point first gets a zero-length spring to a fixed anchor just inside
+  // the surface (stiffer each round), so that the correction spreads over its neighbours; only
+  // points still outside after the soft rounds are pinned.
+  const std::size_t lattice_points = system.positions.size();
+  std::vector<double> point_stiffness(lattice_points, 0.0), point_springs(lattice_points, 0.0);
+  for (const springs::Spring& s : system.springs) {
+    point_stiffness[static_cast<std::size_t>(s.a)] += s.stiffness;
+    point_stiffness[static_cast<std::size_t>(s.b)] += s.stiffness;
+  }
+  std::unordered_map<int, std::size_t> anchor_spring;  // lattice point -> index of its anchor spring
+  int anchored = 0;
   auto settle_with_contact = [&](const springs::SettleOptions& settle_options) {
+    int soft = 0, local_rounds = 0;
     for (;;) {
       springs::SettleReport settled;
       if (options.backend == "gl") {
   #ifdef FASCICLE_HAVE_SHADERS
         const shaders::GlContext context;
         shaders::GpuSettleOptions gpu;
-        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, settle_options, gpu, &shape);
+        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, settle_options, gpu,
+                                                                               anchor_spring.empty() ? &shape : nullptr);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
   #else
@@ -367,11 +383,12 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
                                     "was built); use --backend cpu");
   #endif
       } else {
-        settled = springs::settle(system, settle_options, &shape);
+        settled = springs::settle(system, settle_options, anchor_spring.empty() ? &shape : nullptr);
       }
       solves.push_back(settle_json(settled));
       outside = outside_free_points(system, query);
-      if (outside.empty() || rounds == options.contact_rounds) break;
+      if (outside.empty() || local_rounds == options.contact_rounds) break;
+      ++local_rounds;
       ++rounds;
       const std::vector<double> spacing = local_spacing(system);
       for (int q : outside) {
@@ -393,10 +410,32 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
           depth *= 0.5;
           moved = c.position + depth * inward;
         }
+        if (soft < options.soft_contact_rounds) {
+          const auto it = anchor_spring.find(q);
+          if (it == anchor_spring.end()) {
+            system.positions.push_back(moved);
+            system.fixed.push_back(1);
+            system.mass.push_back(system.mass[static_cast<std::size_t>(q)]);
+            springs::Spring spring;
+            spring.a = q;
+            spring.b = static_cast<int>(system.positions.size()) - 1;
+            spring.rest = 0.0;
+            spring.stiffness = 4.0 * point_stiffness[static_cast<std::size_t>(q)];
+            anchor_spring[q] = system.springs.size();
+            system.springs.push_back(spring);
+            ++anchored;
+          } else {
+            springs::Spring& spring = system.springs[it->second];
+            system.positions[static_cast<std::size_t>(spring.b)] = moved;
+            spring.stiffness *= 4.0;
+          }
+          continue;
+        }
         system.positions[static_cast<std::size_t>(q)] = moved;
         system.fixed[static_cast<std::size_t>(q)] = 1;
         ++pinned;
       }
+      ++soft;
     }
   };
   settle_with_contact(options.cast_rounds > 0 ? rough : options.settle);
@@ -408,7 +447,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   }
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
-  report.containment = {{"rounds", rounds}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
+  report.containment = {{"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
   report.settle_seconds = since(stage);
 
   // Smoothing along fibres, free points only; a point the smoothing would move out stays.

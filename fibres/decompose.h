@@ -69,7 +69,10 @@ struct DecomposeOptions {
   int cast_rounds = 2;          ///< rounds of "fibre ends cast onto the surface under the layer
                                 ///< next to them, settle again" (step 6b), >= 0 (default 2;
                                 ///< 0: the ends stay where the sphere maps place them)
-  int contact_rounds = 4;       ///< containment rounds (step 6), >= 0 (default 4)
+  int soft_contact_rounds = 3;  ///< of the containment rounds, the first ones anchor outside points
+                                ///< by zero-length springs to targets just inside (4x stiffer each
+                                ///< round) instead of fixing them, >= 0 (default 3)
+  int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
                                 ///< spacings, (0, 1) (default 0.3)
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
