@@ -52,6 +52,13 @@ std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,
                                                      const LatticeShape& shape, bool momentum = false);
+/// Whether structured solvers built from now on may use the AVX-512 spring loop (default true;
+/// tests switch it off to check the portable loop against it). Takes effect only where the
+/// processor has AVX-512.
+void set_structured_simd(bool enabled);
+/// True when a structured solver built now would use the AVX-512 spring loop.
+bool structured_simd_active();
+
 std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,

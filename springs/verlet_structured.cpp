@@ -3,26 +3,45 @@
 // Data: struct of arrays (x, y, z; previous x, y, z), one stiffness array per half direction
 // (3 for model-6, 13 for model-26; stiffness 1 / rest length, so the rest length is 1 / k and
 // the force of a spring is (k - 1 / |l|) l), per-point coefficients a = dt^2 / m and
-// b = 1 - c dt / m, fixed flags. Neighbours are implicit: the spring from p in direction d ends
-// at p + offset[d] and the one from p - offset[d] ends at p.
+// b = 1 - c dt / m, fixed flags. Neighbours are implicit: the spring from p in half direction d
+// ends at p + offset[d].
 //
-// Each point gathers its spring forces from the current positions only (every spring is
-// evaluated from both ends) and its new position is written over its previous one: the forces
-// of a step are a function of the current array, so the result does not depend on traversal
-// order or thread count, exactly as accumulating them into a separate array (the general path)
-// would; fusing the two passes halves the memory traffic. Rows of interior points without a
-// fixed point run through a branch-free loop the compiler vectorises (compiled for AVX-512,
-// AVX2 and baseline x86-64, picked at run time); points on the boundary of the index box take
-// a checked scalar path. When every direction's springs share one stiffness and every point
-// the same coefficients, the rows read scalars instead of those arrays (detect_uniform). The
-// same kernels run the momentum static solver (per-step b, gradient restarts).
+// Every spring is evaluated once, from its first end, and its force pushed to both ends: +f to
+// the first, -f to the other. The half directions only point forward in the row order (row =
+// (j, k), rows in index order), to the same row, the next one and the three rows around it in
+// the next plane, so once a row's own springs are evaluated its force is complete: the row is
+// integrated at once (forces of the current positions, new positions written over the previous
+// ones, which nothing else reads) and its accumulator slot reused. The accumulators are a ring
+// of ny + 2 rows per task, in cache. Tasks take slabs of whole planes; a slab first evaluates
+// the forward springs of the plane before it (the ones that end in the slab), in the same order
+// as the slab before it does, so every point's force is summed in the same order whatever the
+// slabs: the result does not depend on the thread count or the grain. Compared with gathering
+// (each point evaluating all its springs) this halves the square roots, which bound the
+// model-26 iteration.
+//
+// Where the processor has AVX-512, a row is one loop written with intrinsics (fused_row_avx512:
+// own springs summed in registers, integration in the same pass) and takes 1 / sqrt from
+// VRSQRT14PD refined by one third-order step (relative error below about 6e-13); elsewhere
+// plain C++ loops (spring spans, then integrate_row) divide by sqrt, vectorised by the
+// compiler. Both are deterministic; they differ from each other by rounding. When
+// every direction's springs share one stiffness and every point the same coefficients, the rows
+// read scalars instead of those arrays (detect_uniform). The same kernels run the momentum
+// static solver (per-step b, gradient restarts).
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define FASCICLE_HAVE_AVX512_KERNEL 1
+#endif
+
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -30,33 +49,25 @@
 #include <limits>
 #include <utility>
 
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define FASCICLE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define FASCICLE_CLONES
-#endif
-
 namespace fascicle::springs::detail {
+
+namespace {
+std::atomic<bool> g_simd_enabled{true};
+}
+
+void set_structured_simd(bool enabled) { g_simd_enabled = enabled; }
+
+bool structured_simd_active() {
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+  return g_simd_enabled && __builtin_cpu_supports("avx512f");
+#else
+  return false;
+#endif
+}
+
 namespace {
 
 constexpr int kMaxDirections = 13;
-
-struct Kernel {
-  const double* x;
-  const double* y;
-  const double* z;
-  double* px;  // previous positions, overwritten with the new ones
-  double* py;
-  double* pz;
-  const double* k[kMaxDirections];
-  long offset[kMaxDirections];
-  const double* a;
-  const double* b;
-  const std::uint8_t* fixed;
-  // Uniform lattices: one stiffness per direction, one a and one b for every point.
-  double k_uniform[kMaxDirections];
-  double a_uniform, b_uniform;
-};
 
 // Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
 // above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
@@ -72,97 +83,316 @@ inline double double_of(std::uint64_t u) {
   return v;
 }
 
-// Adds the two springs of half direction d (towards p + off and from p - off) to f; their
-// stiffnesses are k[p] and k[p - off], or `uniform` for every spring when Uniform.
-template <bool Uniform>
-inline __attribute__((always_inline)) void add_direction(const double* __restrict x, const double* __restrict y,
-                                                         const double* __restrict z, const double* __restrict k,
-                                                         double uniform, long off, long p, double xp, double yp,
-                                                         double zp, double& fx, double& fy, double& fz) {
-  {
-    const long q = p + off;
-    const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
-    const double w = (Uniform ? uniform : k[p]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
-    fx += w * lx;
-    fy += w * ly;
-    fz += w * lz;
-  }
-  {
-    const long q = p - off;
-    const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
-    const double w = (Uniform ? uniform : k[q]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
-    fx += w * lx;
-    fy += w * ly;
-    fz += w * lz;
+// The springs from `count` consecutive points of a source row (positions s*, stiffness k or the
+// scalar ku when k is null) to the same count of points of a target row (t*): f = (k - 1/|l|) l,
+// l = t - s; f is added to the source accumulators (a*, skipped when ax is null) and subtracted
+// from the target accumulators (b*, skipped when bx is null). The target accumulators may be the
+// source ones shifted by one point (the springs along x): each vector of springs is added to the
+// sources before it is subtracted from the targets.
+struct SpringSpan {
+  const double* sx;
+  const double* sy;
+  const double* sz;
+  const double* tx;
+  const double* ty;
+  const double* tz;
+  const double* k;
+  double ku;
+  double* ax;
+  double* ay;
+  double* az;
+  double* bx;
+  double* by;
+  double* bz;
+  long count;
+};
+
+void spring_span_plain(const SpringSpan& s) {
+  for (long i = 0; i < s.count; ++i) {
+    const double lx = s.tx[i] - s.sx[i], ly = s.ty[i] - s.sy[i], lz = s.tz[i] - s.sz[i];
+    const double w = (s.k ? s.k[i] : s.ku) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    const double fx = w * lx, fy = w * ly, fz = w * lz;
+    if (s.ax) {
+      s.ax[i] += fx;
+      s.ay[i] += fy;
+      s.az[i] += fz;
+    }
+    if (s.bx) {
+      s.bx[i] -= fx;
+      s.by[i] -= fy;
+      s.bz[i] -= fz;
+    }
   }
 }
 
-// One row of interior points. Returns the largest squared force (as bits, see bits_of) and adds
-// sum f . (x - x_previous) to `power` (the momentum solver's restart test).
-template <bool Write, bool UniformK, bool UniformAB, std::size_t... Ds>
-inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1, double* power,
-                                                             std::index_sequence<Ds...>) {
-  const double* __restrict x = g.x;
-  const double* __restrict y = g.y;
-  const double* __restrict z = g.z;
-  double* __restrict px = g.px;
-  double* __restrict py = g.py;
-  double* __restrict pz = g.pz;
-  const double* __restrict a = g.a;
-  const double* __restrict b = g.b;
-  const double* const k[sizeof...(Ds)] = {g.k[Ds]...};
-  const long off[sizeof...(Ds)] = {g.offset[Ds]...};
-  const double ku[sizeof...(Ds)] = {g.k_uniform[Ds]...};
-  const double au = g.a_uniform, bu = g.b_uniform;
+// The same with separate accumulators (no overlap): the compiler may vectorise it.
+void spring_span_plain_disjoint(const SpringSpan& s) {
+  const double* __restrict sx = s.sx;
+  const double* __restrict sy = s.sy;
+  const double* __restrict sz = s.sz;
+  const double* __restrict tx = s.tx;
+  const double* __restrict ty = s.ty;
+  const double* __restrict tz = s.tz;
+  double* __restrict ax = s.ax;
+  double* __restrict ay = s.ay;
+  double* __restrict az = s.az;
+  double* __restrict bx = s.bx;
+  double* __restrict by = s.by;
+  double* __restrict bz = s.bz;
+  const bool own = ax != nullptr, push = bx != nullptr;
+  const double* __restrict k = s.k;
+  const double ku = s.ku;
+#pragma omp simd
+  for (long i = 0; i < s.count; ++i) {
+    const double lx = tx[i] - sx[i], ly = ty[i] - sy[i], lz = tz[i] - sz[i];
+    const double w = (k ? k[i] : ku) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    const double fx = w * lx, fy = w * ly, fz = w * lz;
+    if (own) {
+      ax[i] += fx;
+      ay[i] += fy;
+      az[i] += fz;
+    }
+    if (push) {
+      bx[i] -= fx;
+      by[i] -= fy;
+      bz[i] -= fz;
+    }
+  }
+}
+
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+// GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked forms) and then
+// warn about it: a false positive.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// One row on the AVX-512 path, 8 points a vector. A point's own springs are summed in registers
+// (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
+// target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
+// f one lane up and carrying the last lane into the next vector. The force of a point is then
+// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once.
+// Without `integrate` (a slab's prologue) only the pushes are made.
+struct FusedRow {
+  const double* x[3];               // the row's positions (index i = point i of the row)
+  double* p[3];                     // the row's previous positions, overwritten with the new ones
+  const double* ring[3];            // the row's accumulated pushes
+  int directions;
+  bool valid[kMaxDirections];       // the direction's target row exists (and is used)
+  int dx[kMaxDirections];
+  long offset[kMaxDirections];      // index offset of the target point
+  const double* k[kMaxDirections];  // per-point stiffness at the source (null: ku)
+  double ku[kMaxDirections];
+  double* push[kMaxDirections][3];  // the target row's accumulators at point 0 (null: not pushed)
+  int along_x;                      // the direction (1, 0, 0), -1 when not valid
+  const double* a;                  // per-point a, b (null: au, bu)
+  const double* b;
+  double au, bu;
+  const std::uint8_t* fixed;
+  long nx;
+  bool integrate, write;
+};
+
+// 1 / sqrt(l2): VRSQRT14PD (relative error e0 below 2^-14), then one third-order step
+// y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2): relative
+// error below 5/16 e0^3, about 6e-13, plus rounding; five operations against seven for two
+// Newton steps. Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path).
+// Explicit FMAs; the library is compiled with -ffp-contract=off, so the same source gives the
+// same bits everywhere.
+__attribute__((target("avx512f"), always_inline)) inline __m512d inverse_sqrt(__m512d l2) {
+  // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
+  const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
+  const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
+  const __m512d g = _mm512_mul_pd(e, _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5)));
+  return _mm512_fmadd_pd(y0, g, y0);
+}
+
+// Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
+// ones are slower on some processors, measured on this one).
+__attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 m, const double* p) {
+  return m == 0xFF ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, p);
+}
+__attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m, double* p, __m512d v) {
+  if (m == 0xFF) _mm512_storeu_pd(p, v);
+  else _mm512_mask_storeu_pd(p, m, v);
+}
+
+template <int Directions>
+__attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedRow& given, double* power) {
+  // A local copy: vector stores may alias anything, so fields read through a reference would be
+  // reloaded after every store.
+  const FusedRow r = given;
+  const long nx = r.nx;
+  const double *x0 = r.x[0], *x1 = r.x[1], *x2 = r.x[2];
+  __m512d carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  __m512i largest = _mm512_setzero_si512();
+  __m512d fv = _mm512_setzero_pd();
+  for (long i = 0; i < nx; i += 8) {
+    const long left = nx - i;
+    const __mmask8 row_mask = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+    const __m512d sx = load8(row_mask, x0 + i);
+    const __m512d sy = load8(row_mask, x1 + i);
+    const __m512d sz = load8(row_mask, x2 + i);
+    __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+    __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+#pragma GCC unroll 13
+    for (int d = 0; d < Directions; ++d) {
+      if (!r.valid[d]) continue;
+      // Lanes whose target exists: i + dx in [0, nx).
+      __mmask8 m = row_mask;
+      if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
+      if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
+      const long q = i + r.offset[d];
+      const __m512d lx = _mm512_maskz_sub_pd(m, load8(m, x0 + q), sx);
+      const __m512d ly = _mm512_maskz_sub_pd(m, load8(m, x1 + q), sy);
+      const __m512d lz = _mm512_maskz_sub_pd(m, load8(m, x2 + q), sz);
+      const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
+      const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
+      const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
+      const __m512d f[3] = {_mm512_mul_pd(w, lx), _mm512_mul_pd(w, ly), _mm512_mul_pd(w, lz)};
+      for (int c = 0; c < 3; ++c) own[c] = _mm512_add_pd(own[c], f[c]);
+      if (d == r.along_x) {
+        for (int c = 0; c < 3; ++c) along[c] = f[c];
+      } else if (r.push[d][0]) {
+        for (int c = 0; c < 3; ++c) {
+          double* target = r.push[d][c] + i + r.dx[d];
+          store8(m, target, _mm512_sub_pd(load8(m, target), f[c]));
+        }
+      }
+    }
+    if (!r.integrate) continue;
+    // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
+    // lane coming in at lane 0.
+    __m512d force[3];
+    for (int c = 0; c < 3; ++c) {
+      const __m512d shifted = _mm512_castsi512_pd(
+          _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
+      carry[c] = along[c];
+      force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+    }
+    std::uint64_t packed = 0;  // the 8 fixed flags (fewer at the row's end)
+    std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= 8 ? 8 : left));
+    const __m128i fixed_bytes = _mm_cvtsi64_si128(static_cast<long long>(packed));
+    const __mmask8 is_fixed = _mm512_test_epi64_mask(_mm512_cvtepu8_epi64(fixed_bytes), _mm512_set1_epi64(0xFF));
+    const __mmask8 is_free = static_cast<__mmask8>(row_mask & ~is_fixed);
+    const __m512d f2 = _mm512_fmadd_pd(force[2], force[2],
+                                       _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
+    largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
+    const __m512d vx = _mm512_sub_pd(sx, load8(row_mask, r.p[0] + i));
+    const __m512d vy = _mm512_sub_pd(sy, load8(row_mask, r.p[1] + i));
+    const __m512d vz = _mm512_sub_pd(sz, load8(row_mask, r.p[2] + i));
+    const __m512d pv = _mm512_fmadd_pd(force[2], vz, _mm512_fmadd_pd(force[1], vy, _mm512_mul_pd(force[0], vx)));
+    fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
+    if (!r.write) continue;
+    const __m512d a = r.a ? load8(row_mask, r.a + i) : _mm512_set1_pd(r.au);
+    const __m512d b = r.b ? load8(row_mask, r.b + i) : _mm512_set1_pd(r.bu);
+    const __m512d v[3] = {vx, vy, vz}, s[3] = {sx, sy, sz};
+    for (int c = 0; c < 3; ++c) {
+      // fixed points: x_new = x; free: x + b v + a f
+      const __m512d moved = _mm512_fmadd_pd(a, force[c], _mm512_fmadd_pd(b, v[c], s[c]));
+      store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
+    }
+  }
+  alignas(64) double lanes[8];
+  _mm512_store_pd(lanes, fv);
+  double sum = 0.0;
+  for (double v : lanes) sum += v;
+  *power += sum;
+  alignas(64) std::uint64_t big[8];
+  _mm512_store_si512(reinterpret_cast<__m512i*>(big), largest);
+  std::uint64_t out = 0;
+  for (std::uint64_t v : big) out = v > out ? v : out;
+  return out;
+}
+
+std::uint64_t fused_row_avx512(const FusedRow& r, double* power) {
+  return r.directions == 3 ? fused_row_avx512_t<3>(r, power) : fused_row_avx512_t<kMaxDirections>(r, power);
+}
+#pragma GCC diagnostic pop
+#endif
+
+// Integrates one row whose forces are complete. Returns the largest squared force at a free
+// point (as bits, see bits_of) and adds sum f . (x - x_previous) over free points to `power`.
+struct RowIntegration {
+  const double* x;
+  const double* y;
+  const double* z;
+  double* px;
+  double* py;
+  double* pz;
+  const double* fx;
+  const double* fy;
+  const double* fz;
+  const double* a;  // null: au for every point
+  const double* b;  // null: bu
+  double au, bu;
+  const std::uint8_t* fixed;
+  long count;
+  bool write;
+};
+
+std::uint64_t integrate_row(const RowIntegration& r, double* power) {
+  const double* __restrict x = r.x;
+  const double* __restrict y = r.y;
+  const double* __restrict z = r.z;
+  double* __restrict px = r.px;
+  double* __restrict py = r.py;
+  double* __restrict pz = r.pz;
+  const double* __restrict fxs = r.fx;
+  const double* __restrict fys = r.fy;
+  const double* __restrict fzs = r.fz;
+  const double* __restrict a = r.a;
+  const double* __restrict b = r.b;
+  const std::uint8_t* __restrict fixed = r.fixed;
+  const double au = r.au, bu = r.bu;
+  const bool per_point = a != nullptr, write = r.write;
   std::uint64_t largest = 0;
   double fv = 0.0;
-  // Point p writes only px/py/pz[p], which no other iteration reads: no loop-carried dependence
-  // (GCC's restrict on locals is too weak to prove it with three output streams). The simd
-  // reductions are deterministic for a given machine (lane order is fixed).
+  // Point i writes only px/py/pz[i], which no other iteration reads. The simd reductions are
+  // deterministic for a given machine (lane order is fixed).
 #pragma omp simd reduction(max : largest) reduction(+ : fv)
-  for (long p = p0; p < p1; ++p) {
-    const double xp = x[p], yp = y[p], zp = z[p];
-    double fx = 0.0, fy = 0.0, fz = 0.0;
-    (add_direction<UniformK>(x, y, z, k[Ds], ku[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
-    const std::uint64_t bits = bits_of(fx * fx + fy * fy + fz * fz);
+  for (long i = 0; i < r.count; ++i) {
+    const bool is_free = fixed[i] == 0;
+    const double fx = fxs[i], fy = fys[i], fz = fzs[i];
+    const double xp = x[i], yp = y[i], zp = z[i];
+    const double vx = xp - px[i], vy = yp - py[i], vz = zp - pz[i];
+    const std::uint64_t bits = is_free ? bits_of(fx * fx + fy * fy + fz * fz) : 0;
     largest = bits > largest ? bits : largest;
-    const double vx = xp - px[p], vy = yp - py[p], vz = zp - pz[p];
-    fv += fx * vx + fy * vy + fz * vz;
-    if (Write) {
-      const double ap = UniformAB ? au : a[p], bp = UniformAB ? bu : b[p];
-      px[p] = xp + bp * vx + ap * fx;
-      py[p] = yp + bp * vy + ap * fy;
-      pz[p] = zp + bp * vz + ap * fz;
+    fv += is_free ? fx * vx + fy * vy + fz * vz : 0.0;
+    if (write) {
+      const double ap = per_point ? a[i] : au, bp = per_point ? b[i] : bu;
+      px[i] = is_free ? xp + bp * vx + ap * fx : xp;
+      py[i] = is_free ? yp + bp * vy + ap * fy : yp;
+      pz[i] = is_free ? zp + bp * vz + ap * fz : zp;
     }
   }
   *power += fv;
   return largest;
 }
 
-
-using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*);
-#define FASCICLE_ROW(name, write, uk, uab, d)                                                   \
-  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power) {     \
-    return row_body<write, uk, uab>(g, p0, p1, power, std::make_index_sequence<d>());         \
+// Accumulators of one task: two planes of ny rows of nx forces per coordinate (plane k and
+// k + 1, alternating); a task touches only the rows of its strip.
+struct Ring {
+  std::vector<double> f[3];
+  long ny = 0, nx = 0;
+  void reset(long rows_per_plane, long row_length) {
+    if (ny != rows_per_plane || nx != row_length) {
+      ny = rows_per_plane;
+      nx = row_length;
+      for (auto& v : f) v.assign(static_cast<std::size_t>(2 * ny * nx), 0.0);
+    }
   }
-FASCICLE_ROW(force6, false, false, false, 3)
-FASCICLE_ROW(force26, false, false, false, 13)
-FASCICLE_ROW(force6_k, false, true, false, 3)
-FASCICLE_ROW(force26_k, false, true, false, 13)
-FASCICLE_ROW(step6, true, false, false, 3)
-FASCICLE_ROW(step26, true, false, false, 13)
-FASCICLE_ROW(step6_ab, true, false, true, 3)
-FASCICLE_ROW(step26_ab, true, false, true, 13)
-FASCICLE_ROW(step6_k, true, true, false, 3)
-FASCICLE_ROW(step26_k, true, true, false, 13)
-FASCICLE_ROW(step6_kab, true, true, true, 3)
-FASCICLE_ROW(step26_kab, true, true, true, 13)
-#undef FASCICLE_ROW
+  // Row r = j + ny k of the lattice.
+  double* row(int c, long r) { return f[c].data() + (((r / ny) & 1) * ny + r % ny) * nx; }
+  void zero(long r) {
+    for (int c = 0; c < 3; ++c) std::memset(row(c, r), 0, sizeof(double) * static_cast<std::size_t>(nx));
+  }
+};
 
-// kRows[write][uniform stiffness][uniform a, b][model-26]; forces alone ignore a, b.
-const RowFunction kRows[2][2][2][2] = {
-    {{{force6, force26}, {force6, force26}}, {{force6_k, force26_k}, {force6_k, force26_k}}},
-    {{{step6, step26}, {step6_ab, step26_ab}}, {{step6_k, step26_k}, {step6_kab, step26_kab}}}};
+// A task's part of the lattice: planes [k0, k1) x rows [j0, j1) of each plane.
+struct Tile {
+  long k0, k1, j0, j1;
+  // Whether row (j, k) is pushed into by this task: inside the tile.
+  bool holds(long j, long k) const { return j >= j0 && j < j1 && k >= k0 && k < k1; }
+};
 
 class StructuredVerlet final : public SpringSolver {
  public:
@@ -186,17 +416,25 @@ class StructuredVerlet final : public SpringSolver {
     fixed_.resize(n_);
     for (long i = 0; i < n_; ++i) fixed_[i] = system.fixed[i] ? 1 : 0;
     rows_ = static_cast<long>(shape.ny) * shape.nz;
-    // At least ~8192 points a task: small lattices run as one task (TBB's overhead per task
-    // is larger than a small lattice's iteration); results do not depend on the grain.
-    grain_ = std::max(1L, 8192L / std::max(1, shape.nx));
+    // Tiles of whole rows: slabs of planes (a slab re-evaluates the forward springs of the plane
+    // before it) x strips of about 24 rows (a strip re-evaluates the pushes of the rows on both
+    // sides), about 4 slabs per thread against the shared machine's other work. Strips keep a
+    // task's positions and accumulators in the second-level cache. The result does not depend
+    // on the tiles.
+    const long threads = std::max(1, tbb::this_task_arena::max_concurrency());
+    slab_ = std::max(2L, (shape.nz + 4 * threads - 1) / (4 * threads));
+    strip_ = shape.ny;
+    if (shape.ny > 32) strip_ = (shape.ny + (shape.ny + 23) / 24 - 1) / ((shape.ny + 23) / 24);
+    // Small lattices run as one task: TBB's overhead per task is larger than their iteration.
+    if (n_ < 32768) {
+      slab_ = shape.nz;
+      strip_ = shape.ny;
+    }
+    slabs_ = (shape.nz + slab_ - 1) / slab_;
+    strips_ = (shape.ny + strip_ - 1) / strip_;
     row_largest_.assign(rows_, 0);
     row_power_.assign(rows_, 0.0);
-    // The vectorised loop has no fixed-point logic: a row with a fixed interior point takes the
-    // checked path (template lattices fix only the index box's boundary, so none does).
-    row_has_fixed_.assign(rows_, 0);
-    for (long row = 0; row < rows_; ++row)
-      for (int i = 1; i + 1 < shape.nx; ++i)
-        if (fixed_[row * shape.nx + i]) row_has_fixed_[row] = 1;
+    simd_ = structured_simd_active();
     row_energy_.assign(rows_, 0.0);
     detect_uniform();
     if (momentum_) uniform_ab_ = true;  // one a for every point, b set each step
@@ -272,27 +510,6 @@ class StructuredVerlet final : public SpringSolver {
   double mean_damping() const override { return coefficients_.mean_damping; }
 
  private:
-  Kernel kernel() {
-    Kernel g;
-    g.x = x_[0].data();
-    g.y = x_[1].data();
-    g.z = x_[2].data();
-    g.px = p_[0].data();
-    g.py = p_[1].data();
-    g.pz = p_[2].data();
-    for (int d = 0; d < kMaxDirections; ++d) {
-      g.k[d] = d < directions_ ? stiffness_[d].data() : nullptr;
-      g.offset[d] = d < directions_ ? offset_[d] : 0;
-    }
-    g.a = coefficients_.a.data();
-    g.b = coefficients_.b.data();
-    g.fixed = fixed_.data();
-    for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
-    g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
-    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
-    return g;
-  }
-
   // A lattice is uniform when every direction's springs share one stiffness to 1e-12 relative
   // (regular lattices: the rest lengths differ only by rounding); a, b are uniform when every
   // point has the same. Interior rows then read scalars instead of 3 or 13 stiffness arrays and
@@ -324,63 +541,160 @@ class StructuredVerlet final : public SpringSolver {
         if (stiffness_[d][i] != 0.0) stiffness_[d][i] = k_uniform_[d];
   }
 
-  // Checked scalar path for a point on the boundary of the index box.
-  std::uint64_t boundary_point(const Kernel& g, long p, int i, int j, int k, bool write, double* power) const {
-    const double xp = g.x[p], yp = g.y[p], zp = g.z[p];
-    double f[3] = {0.0, 0.0, 0.0};
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+  // The AVX-512 row of `r`: pushes into the rows the tile holds; `integrate` false for the rows
+  // around the tile (only pushes; `forward_only`: only the directions into the next plane).
+  FusedRow fused_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
+    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
+    const long j = r % ny, k = r / ny, base = r * nx;
+    FusedRow f;
+    for (int c = 0; c < 3; ++c) {
+      f.x[c] = x_[c].data() + base;
+      f.p[c] = p_[c].data() + base;
+      f.ring[c] = ring.row(c, r);
+    }
+    f.directions = directions_;
+    f.along_x = -1;
     for (int d = 0; d < directions_; ++d) {
-      for (int sign = 1; sign >= -1; sign -= 2) {
-        const int i2 = i + sign * dir_[d][0], j2 = j + sign * dir_[d][1], k2 = k + sign * dir_[d][2];
-        if (i2 < 0 || j2 < 0 || k2 < 0 || i2 >= shape_.nx || j2 >= shape_.ny || k2 >= shape_.nz) continue;
-        const long q = p + sign * offset_[d];
-        const double l[3] = {g.x[q] - xp, g.y[q] - yp, g.z[q] - zp};
-        const double w = g.k[d][sign > 0 ? p : q] - 1.0 / std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
-        for (int c = 0; c < 3; ++c) f[c] += w * l[c];
+      const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
+      const long target = r + dy + ny * dz;
+      f.valid[d] = j + dy >= 0 && j + dy < ny && k + dz < nz && nx > (dx != 0 ? 1 : 0) && (!forward_only || dz == 1);
+      f.dx[d] = dx;
+      f.offset[d] = offset_[d];
+      f.k[d] = uniform_k_ ? nullptr : stiffness_[d].data() + base;
+      f.ku[d] = k_uniform_[d];
+      const bool along_x = dx == 1 && dy == 0 && dz == 0;
+      if (along_x && f.valid[d] && integrate) f.along_x = d;
+      const bool push = f.valid[d] && !along_x && tile.holds(j + dy, k + dz);
+      for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.row(c, target) : nullptr;
+    }
+    f.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
+    f.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
+    f.au = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    f.bu = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
+    f.fixed = fixed_.data() + base;
+    f.nx = nx;
+    f.integrate = integrate;
+    f.write = write;
+    return f;
+  }
+#endif
+
+  // Evaluates the springs of row `r` (= j + ny k) in direction order, pushing them into the
+  // ring: +f to row r unless `own` is false, -f to the target row when the tile holds it.
+  // `forward_only`: only the directions into the next plane (a slab's prologue).
+  void row_springs(Ring& ring, long r, const Tile& tile, bool own, bool forward_only) const {
+    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
+    const long j = r % ny, k = r / ny;
+    const long base = r * nx;
+    for (int d = 0; d < directions_; ++d) {
+      const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
+      if (forward_only && dz == 0) continue;
+      if (j + dy < 0 || j + dy >= ny || k + dz >= nz) continue;
+      const long i0 = dx < 0 ? 1 : 0, i1 = dx > 0 ? nx - 1 : nx;
+      if (i1 <= i0) continue;
+      const long target = r + dy + ny * dz;
+      const long p = base + i0, q = p + offset_[d];
+      SpringSpan s;
+      s.sx = x_[0].data() + p;
+      s.sy = x_[1].data() + p;
+      s.sz = x_[2].data() + p;
+      s.tx = x_[0].data() + q;
+      s.ty = x_[1].data() + q;
+      s.tz = x_[2].data() + q;
+      s.k = uniform_k_ ? nullptr : stiffness_[d].data() + p;
+      s.ku = k_uniform_[d];
+      if (own) {
+        s.ax = ring.row(0, r) + i0;
+        s.ay = ring.row(1, r) + i0;
+        s.az = ring.row(2, r) + i0;
+      } else {
+        s.ax = s.ay = s.az = nullptr;
       }
-    }
-    const bool is_fixed = g.fixed[p] != 0;
-    if (is_fixed) {
-      if (write) {
-        g.px[p] = xp;
-        g.py[p] = yp;
-        g.pz[p] = zp;
+      if (tile.holds(j + dy, k + dz)) {
+        s.bx = ring.row(0, target) + i0 + dx;
+        s.by = ring.row(1, target) + i0 + dx;
+        s.bz = ring.row(2, target) + i0 + dx;
+      } else {
+        s.bx = s.by = s.bz = nullptr;
       }
-      return 0;
+      s.count = i1 - i0;
+      if (target == r && own) spring_span_plain(s);  // accumulators overlap (springs along x)
+      else spring_span_plain_disjoint(s);
     }
-    const double v[3] = {xp - g.px[p], yp - g.py[p], zp - g.pz[p]};
-    *power += f[0] * v[0] + f[1] * v[1] + f[2] * v[2];
-    if (write) {
-      const double a = uniform_ab_ ? g.a_uniform : g.a[p], b = uniform_ab_ ? g.b_uniform : g.b[p];
-      g.px[p] = xp + b * v[0] + a * f[0];
-      g.py[p] = yp + b * v[1] + a * f[1];
-      g.pz[p] = zp + b * v[2] + a * f[2];
+  }
+
+  // One row: the AVX-512 loop or the plain one. `integrate`: a row of the tile (own springs,
+  // then the row is complete and integrated); else a row around it (pushes into the tile only).
+  void process_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+    if (simd_) {
+      double power = 0.0;
+      const std::uint64_t largest = fused_row_avx512(fused_row(ring, r, tile, integrate, forward_only, write), &power);
+      if (integrate) {
+        row_largest_[r] = largest;
+        row_power_[r] = power;
+      }
+      return;
     }
-    return bits_of(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+#endif
+    row_springs(ring, r, tile, integrate, forward_only);
+    if (!integrate) return;
+    const long base = r * shape_.nx;
+    RowIntegration in;
+    in.x = x_[0].data() + base;
+    in.y = x_[1].data() + base;
+    in.z = x_[2].data() + base;
+    in.px = p_[0].data() + base;
+    in.py = p_[1].data() + base;
+    in.pz = p_[2].data() + base;
+    in.fx = ring.row(0, r);
+    in.fy = ring.row(1, r);
+    in.fz = ring.row(2, r);
+    in.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
+    in.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
+    in.au = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    in.bu = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
+    in.fixed = fixed_.data() + base;
+    in.count = shape_.nx;
+    in.write = write;
+    double power = 0.0;
+    row_largest_[r] = integrate_row(in, &power);
+    row_power_[r] = power;
   }
 
   // One pass over the lattice: forces at the current positions, new positions into p_ when
   // `write`. Returns the largest squared force at a free point (NaN when any is NaN).
+  //
+  // Tasks take tiles: slabs of planes x strips of rows. Rows are visited in index order: for
+  // each plane of the slab, the row before the strip (its pushes into the strip), the strip's
+  // rows (own springs, pushes, integration), the row after it (its pushes into the strip); a
+  // slab starts with the same for the plane before it, directions into the next plane only.
+  // Every row that pushes into a point does so in the same order as in one pass over the whole
+  // lattice, so each point's force is summed in the same order whatever the tiles.
   double sweep(bool write) {
-    const Kernel g = kernel();
-    const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
-    const bool model6 = directions_ == 3;
-    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
-      for (long row = range.begin(); row != range.end(); ++row) {
-        const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
-        const long base = row * nx;
-        std::uint64_t largest = 0;
-        double power = 0.0;
-        auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
-        if (j == 0 || k == 0 || j == ny - 1 || k == nz - 1 || nx < 3 || row_has_fixed_[row]) {
-          for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write, &power));
-        } else {
-          take(boundary_point(g, base, 0, j, k, write, &power));
-          const long p0 = base + 1, p1 = base + nx - 1;
-          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power));
-          take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
+    const long ny = shape_.ny;
+    tbb::parallel_for(tbb::blocked_range<long>(0, slabs_ * strips_, 1), [&](const tbb::blocked_range<long>& range) {
+      Ring& ring = rings_.local();
+      ring.reset(ny, shape_.nx);
+      for (long task = range.begin(); task != range.end(); ++task) {
+        Tile tile;
+        tile.k0 = (task / strips_) * slab_;
+        tile.k1 = std::min<long>(shape_.nz, tile.k0 + slab_);
+        tile.j0 = (task % strips_) * strip_;
+        tile.j1 = std::min<long>(ny, tile.j0 + strip_);
+        auto plane = [&](long k, bool integrate, bool forward_only) {
+          if (tile.j0 > 0) process_row(ring, tile.j0 - 1 + ny * k, tile, false, forward_only, write);
+          for (long j = tile.j0; j < tile.j1; ++j) process_row(ring, j + ny * k, tile, integrate, forward_only, write);
+          if (tile.j1 < ny) process_row(ring, tile.j1 + ny * k, tile, false, forward_only, write);
+        };
+        for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * tile.k0);
+        if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
+        for (long k = tile.k0; k < tile.k1; ++k) {
+          if (k + 1 < tile.k1)
+            for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * (k + 1));
+          plane(k, true, false);
         }
-        row_largest_[row] = largest;
-        row_power_[row] = power;
       }
     }, tbb::simple_partitioner());
     std::uint64_t largest = 0;
@@ -396,7 +710,9 @@ class StructuredVerlet final : public SpringSolver {
   VerletCoefficients coefficients_;
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
-  long n_ = 0, rows_ = 0, grain_ = 1;
+  long n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
+  bool simd_ = false;  // AVX-512 spring loop (structured_simd_active at construction)
+  tbb::enumerable_thread_specific<Ring> rings_;
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
   long offset_[kMaxDirections] = {};
@@ -410,7 +726,6 @@ class StructuredVerlet final : public SpringSolver {
   bool momentum_ = false;
   int since_restart_ = 0;
   int restarts_ = 0;
-  std::vector<char> row_has_fixed_;
   std::vector<double> row_energy_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
 };
