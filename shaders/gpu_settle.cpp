@@ -160,6 +160,21 @@ double largest_partial(const Buffer& partial, std::size_t groups) {
   return largest;
 }
 
+// Sum of the per-group energies in double; NaN when any is NaN or Inf (divergence).
+double sum_partials(const Buffer& partial, std::size_t groups) {
+  std::vector<float> values(groups);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, partial.id);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(groups * sizeof(float)), values.data());
+  check_gl("energy readback");
+  double sum = 0.0;
+  for (float v : values) {
+    if (!std::isfinite(v)) return std::numeric_limits<double>::quiet_NaN();
+    sum += static_cast<double>(v);
+  }
+  return sum;
+}
+
 // The structured kernel's per-direction stiffness, or nothing when `system` is not exactly the
 // lattice `shape` (the CPU structured path's test: every spring a half-offset neighbour pair,
 // each once, stiffness 1 / rest, every in-lattice neighbour pair joined).
@@ -263,6 +278,17 @@ class ComputeVerlet final : public GpuSpringSolver {
       glUniform1fv(program_->uniform("u_k"), directions_, k_uniform_.data());
       glUniform2f(program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
                   static_cast<float>(coefficients_.b[0]));
+      energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define LATTICE 1\n"));
+      const Program& e = *energy_program_;
+      glUseProgram(e.id);
+      glUniform3i(e.uniform("u_size"), shape_.nx, shape_.ny, shape_.nz);
+      glUniform1i(e.uniform("u_n"), static_cast<GLint>(n_));
+      glUniform1i(e.uniform("u_directions"), directions_);
+      glUniform3iv(e.uniform("u_dir"), directions_, dir.data());
+      glUniform1iv(e.uniform("u_offset"), directions_, offset.data());
+      glUniform1i(e.uniform("u_uniform"), uniform_ ? 1 : 0);
+      glUniform1fv(e.uniform("u_k"), directions_, k_uniform_.data());
+      glUniform2f(e.uniform("u_ab"), static_cast<float>(coefficients_.a[0]), static_cast<float>(coefficients_.b[0]));
     } else {
       program_ = std::make_unique<Program>(compile_program({"verlet_csr.comp"}));
       const springs::detail::SpringRows csr = springs::detail::spring_rows(system);
@@ -281,6 +307,9 @@ class ComputeVerlet final : public GpuSpringSolver {
       storage(coef_, ab.size() * sizeof(float), ab.data(), "Verlet coefficients", bytes_);
       glUseProgram(program_->id);
       glUniform1i(program_->uniform("u_n"), static_cast<GLint>(n_));
+      energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define CSR 1\n"));
+      glUseProgram(energy_program_->id);
+      glUniform1i(energy_program_->uniform("u_n"), static_cast<GLint>(n_));
     }
     u_write_ = program_->uniform("u_write");
     u_measure_ = program_->uniform("u_measure");
@@ -306,6 +335,12 @@ class ComputeVerlet final : public GpuSpringSolver {
     dispatch();
     const double largest = largest_partial(partial_, grid_.groups());
     return std::isfinite(largest) ? std::sqrt(largest) / scale_ : std::numeric_limits<double>::infinity();
+  }
+
+  double energy() override {
+    glUseProgram(energy_program_->id);
+    dispatch();
+    return sum_partials(partial_, grid_.groups());
   }
 
   std::vector<Vec3> positions() override {
@@ -352,7 +387,7 @@ class ComputeVerlet final : public GpuSpringSolver {
   std::array<float, 13> k_uniform_{};
   Buffer x_[2], partial_, stiffness_, coef_, rows_;
   int current_ = 0;
-  std::unique_ptr<Program> program_;
+  std::unique_ptr<Program> program_, energy_program_;
   GLint u_write_ = -1, u_measure_ = -1;
   Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
@@ -425,6 +460,7 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
         compile_program({"spring_force.vert", "spring_force.geom", "spring_force.frag"}));
     integrate_program_ = std::make_unique<Program>(compile_program({"fullscreen.vert", "verlet_integrate.frag"}));
     residual_program_ = std::make_unique<Program>(compile_program({"force_residual.comp"}));
+    energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define TEXTURES 1\n"));
     glUseProgram(force_program_->id);
     glUniform1i(force_program_->uniform("u_positions"), 0);
     glUniform1i(force_program_->uniform("u_width"), width_);
@@ -442,8 +478,20 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     glUniform1i(residual_program_->uniform("u_positions"), 0);
     glUniform1i(residual_program_->uniform("u_width"), width_);
     glUniform1i(residual_program_->uniform("u_n"), static_cast<GLint>(n_));
+    glUseProgram(energy_program_->id);
+    glUniform1i(energy_program_->uniform("u_current"), 0);
+    glUniform1i(energy_program_->uniform("u_previous"), 1);
+    glUniform1i(energy_program_->uniform("u_coefficients"), 3);
+    glUniform1i(energy_program_->uniform("u_uniform"), uniform_ ? 1 : 0);
+    glUniform2f(energy_program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
+                static_cast<float>(coefficients_.b[0]));
+    glUniform1i(energy_program_->uniform("u_width"), width_);
+    glUniform1i(energy_program_->uniform("u_n"), static_cast<GLint>(n_));
+    glUniform1i(energy_program_->uniform("u_springs"), static_cast<GLint>(springs_));
+    energy_grid_ = grid_for(std::max(n_, springs_));
     grid_ = grid_for(n_);
-    storage(partial_, grid_.groups() * sizeof(float), nullptr, "residual partials", bytes_);
+    storage(partial_, std::max(grid_.groups(), energy_grid_.groups()) * sizeof(float), nullptr, "residual partials",
+            bytes_);
     glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_.id);
     glBufferData(GL_PIXEL_PACK_BUFFER, static_cast<GLsizeiptr>(texels * 4 * sizeof(float)), nullptr, GL_STREAM_READ);
     glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
@@ -484,6 +532,19 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     glDispatchCompute(grid_.x, grid_.y, 1);
     const double largest = largest_partial(partial_, grid_.groups());
     return std::isfinite(largest) ? std::sqrt(largest) / scale_ : std::numeric_limits<double>::infinity();
+  }
+
+  double energy() override {
+    glUseProgram(energy_program_->id);
+    bind_texture(0, positions_[current_]);
+    bind_texture(1, positions_[(current_ + 1) % 3]);
+    bind_texture(3, coef_);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, ends_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, params_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id);
+    glDispatchCompute(energy_grid_.x, energy_grid_.y, 1);
+    return sum_partials(partial_, energy_grid_.groups());
   }
 
   std::vector<Vec3> positions() override { return read(true); }
@@ -578,7 +639,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
   Buffer ends_, params_, partial_, pbo_;
   Grid grid_;
   int current_ = 0;  // previous = current + 1, next = current + 2 (mod 3)
-  std::unique_ptr<Program> force_program_, integrate_program_, residual_program_;
+  std::unique_ptr<Program> force_program_, integrate_program_, residual_program_, energy_program_;
+  Grid energy_grid_;
   Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
 };
@@ -634,22 +696,35 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   report.gpu_bytes = solver->gpu_bytes();
   double residual = solver->residual();
   report.residual_history.push_back(residual);
+  // Divergence as on the CPU: every energy_interval iterations the total energy comes back
+  // (a reduction on the GPU, a few kilobytes); NaN/Inf, or more than energy_growth_bound times
+  // the initial energy, stops the solve with the CPU's SolverError.
+  const springs::detail::VerletCoefficients coefficients = springs::detail::verlet_coefficients(system, options);
+  const double initial_energy = std::max(solver->energy(), springs::detail::energy_floor(system));
+  if (!std::isfinite(initial_energy))
+    springs::detail::throw_verlet_divergence(0, NAN, initial_energy, coefficients, options);
   const bool run_all = options.tolerance == 0.0;
-  if (run_all) {
-    solver->run(options.max_iterations);
-    report.iterations = options.max_iterations;
-    residual = solver->residual();
-    report.residual_history.push_back(residual);
-  } else if (residual > options.tolerance) {
+  if (run_all || residual > options.tolerance) {
     double best = residual;
     int without_progress = 0;
+    int next_check = run_all ? options.max_iterations : gpu_options.check_interval;
+    int next_energy = options.energy_interval;
     while (report.iterations < options.max_iterations) {
-      const int block = std::min(gpu_options.check_interval, options.max_iterations - report.iterations);
-      solver->run(block);
-      report.iterations += block;
+      const int until = std::min({next_check, next_energy, options.max_iterations});
+      solver->run(until - report.iterations);
+      report.iterations = until;
+      if (report.iterations == next_energy) {
+        next_energy += options.energy_interval;
+        const double e = solver->energy();
+        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy)
+          springs::detail::throw_verlet_divergence(report.iterations, e, initial_energy, coefficients, options);
+      }
+      if (report.iterations != next_check && report.iterations < options.max_iterations) continue;
+      next_check = report.iterations + gpu_options.check_interval;
       residual = solver->residual();
       report.residual_history.push_back(residual);
       if (!std::isfinite(residual)) break;
+      if (run_all) continue;
       if (residual <= options.tolerance) break;
       if (residual < 0.99 * best) {
         best = residual;
@@ -661,8 +736,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     }
   }
   if (!std::isfinite(residual))
-    springs::detail::throw_verlet_divergence(report.iterations, NAN, 0.0,
-                                             springs::detail::verlet_coefficients(system, options), options);
+    springs::detail::throw_verlet_divergence(report.iterations, NAN, initial_energy, coefficients, options);
   solver->finish();
   const auto t2 = clock_type::now();
   const Readback back = read_positions(*solver, gpu_options.pbo_readback);

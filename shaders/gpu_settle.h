@@ -22,8 +22,11 @@
 /// scales with the lattice's extent, not with its distance from the origin: measured, a lattice
 /// 1000 units away agrees with the CPU to 1e-7 of its size instead of 1.6e-4).
 ///
-/// Divergence (a NaN/Inf force at a check) throws SolverError like the CPU solver; the energy
-/// bound of the CPU solver is not evaluated on the GPU.
+/// Divergence stops the settle with the CPU solver's SolverError (naming the likely cause and the
+/// option to change): every SettleOptions::energy_interval iterations the total energy is
+/// reduced on the GPU and read back (a few kilobytes); NaN/Inf, or more than
+/// energy_growth_bound times the initial energy, is divergence, as is a NaN/Inf force at a
+/// residual check.
 
 #include "shaders/gl_context.h"
 #include "springs/settle.h"
@@ -71,6 +74,11 @@ class GpuSpringSolver {
   /// springs::residual_force_scale, the CPU's measure): one force evaluation and a reduction on
   /// the GPU. +Inf when a force is NaN or Inf.
   virtual double residual() = 0;
+  /// Total energy at the current state, as the CPU Verlet solver measures it (kinetic
+  /// 1/2 m |x - x_prev|^2 / dt^2 at free points plus 1/2 D (|l| - |l0|)^2 per spring): one pass
+  /// and a reduction on the GPU (float32 per work group, summed in double). NaN when any term is
+  /// NaN or Inf.
+  virtual double energy() = 0;
   /// Current positions, #N (one readback).
   virtual std::vector<Vec3> positions() = 0;
   /// Waits until the GPU has finished every queued command (for timing).
@@ -114,7 +122,7 @@ struct GpuSettleReport : springs::SettleReport {
 };
 
 /// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual
-/// on the GPU after each, stops at the tolerance or max_iterations (tolerance 0 runs exactly
+/// on the GPU after each (and the energy every energy_interval iterations, see above), stops at the tolerance or max_iterations (tolerance 0 runs exactly
 /// max_iterations and checks once at the end) or when the residual stops falling in float32
 /// (GpuSettleOptions::stall_checks; report.stalled), reads the positions back once and writes the
 /// free points into system.positions (fixed points keep their exact input bits). The residual
