@@ -38,6 +38,7 @@ struct SpringsBenchArgs {
   std::string trade_sizes = "20,50,100";
   std::string sections = "bandwidth,speed,rest,trade";
   std::string trade_solvers;    // empty: all
+  std::string trade_models = "6,26";
   std::string json;
   std::string plots;            // folder for the template pictures (section "templates")
   double min_seconds = 0.5;     // per speed measurement
@@ -297,6 +298,8 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
   const double thresholds[3] = {1e-2, 1e-4, 1e-6};
   for (int n : parse_list(args.trade_sizes, "trade-sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+      if (("," + args.trade_models + ",").find("," + std::to_string(static_cast<int>(model)) + ",") == std::string::npos)
+        continue;
       const Lattice lattice = bench_lattice(n, model, 1.1 / (static_cast<double>(n) * n * n));
       const LatticeShape shape = shape_of(lattice);
       for (const TradeSolver& entry : solvers) {
@@ -408,6 +411,7 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--trade-solvers", args->trade_solvers,
                   "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, "
                   "static-local-global, static-local-global-plain); default all");
+  cmd->add_option("--trade-models", args->trade_models, "Spring models for the trade (6, 26)")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();

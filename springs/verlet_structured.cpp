@@ -471,23 +471,35 @@ class StructuredVerlet final : public SpringSolver {
 
   double energy() override {
     const double dt2 = coefficients_.dt * coefficients_.dt;
-    const int nx = shape_.nx;
+    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
+        const long base = row * nx, j = row % ny, k = row / ny;
+        const double* __restrict x = x_[0].data() + base;
+        const double* __restrict y = x_[1].data() + base;
+        const double* __restrict z = x_[2].data() + base;
+        const double* __restrict px = p_[0].data() + base;
+        const double* __restrict py = p_[1].data() + base;
+        const double* __restrict pz = p_[2].data() + base;
+        const double* __restrict mass = coefficients_.mass.data() + base;
         double e = 0.0;
-        for (int i = 0; i < nx; ++i) {
-          const long p = row * nx + i;
-          double v2 = 0.0;
-          for (int c = 0; c < 3; ++c) v2 += (x_[c][p] - p_[c][p]) * (x_[c][p] - p_[c][p]);
-          e += 0.5 * coefficients_.mass[p] * v2 / dt2;
-          for (int d = 0; d < directions_; ++d) {
-            const double k = stiffness_[d][p];
-            if (k == 0.0) continue;  // no spring: the neighbour is outside the lattice
-            const long q = p + offset_[d];
-            double l2 = 0.0;
-            for (int c = 0; c < 3; ++c) l2 += (x_[c][q] - x_[c][p]) * (x_[c][q] - x_[c][p]);
-            const double stretch = k * std::sqrt(l2) - 1.0;  // k (|l| - rest)
-            e += 0.5 * stretch * stretch / k;
+#pragma omp simd reduction(+ : e)
+        for (long i = 0; i < nx; ++i) {
+          const double vx = x[i] - px[i], vy = y[i] - py[i], vz = z[i] - pz[i];
+          e += 0.5 * mass[i] * (vx * vx + vy * vy + vz * vz) / dt2;
+        }
+        for (int d = 0; d < directions_; ++d) {
+          if (j + dir_[d][1] < 0 || j + dir_[d][1] >= ny || k + dir_[d][2] >= nz) continue;
+          const long i0 = dir_[d][0] < 0 ? 1 : 0, i1 = dir_[d][0] > 0 ? nx - 1 : nx;
+          const double* __restrict ks = stiffness_[d].data() + base;
+          const double* __restrict qx = x + offset_[d];
+          const double* __restrict qy = y + offset_[d];
+          const double* __restrict qz = z + offset_[d];
+#pragma omp simd reduction(+ : e)
+          for (long i = i0; i < i1; ++i) {
+            const double lx = qx[i] - x[i], ly = qy[i] - y[i], lz = qz[i] - z[i];
+            const double stretch = ks[i] * std::sqrt(lx * lx + ly * ly + lz * lz) - 1.0;  // k (|l| - rest)
+            e += 0.5 * stretch * stretch / ks[i];
           }
         }
         row_energy_[row] = e;
