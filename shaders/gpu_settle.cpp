@@ -213,8 +213,10 @@ std::optional<std::vector<std::vector<double>>> lattice_stiffness(const SpringSy
 class ComputeVerlet final : public GpuSpringSolver {
  public:
   ComputeVerlet(const SpringSystem& system, const SettleOptions& options,
-                std::optional<std::vector<std::vector<double>>> lattice, const LatticeShape* shape)
-      : coefficients_(springs::detail::verlet_coefficients(system, options)) {
+                std::optional<std::vector<std::vector<double>>> lattice, const LatticeShape* shape, bool momentum)
+      : coefficients_(momentum ? springs::detail::momentum_coefficients(system)
+                               : springs::detail::verlet_coefficients(system, options)),
+        momentum_(momentum) {
     n_ = static_cast<long>(system.positions.size());
     if (n_ > std::numeric_limits<int>::max() / 16) throw GpuError("OpenGL: too many points for 32-bit indices");
     grid_ = grid_for(n_);
@@ -224,6 +226,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     storage(x_[0], x.size() * sizeof(float), x.data(), "positions", bytes_);
     storage(x_[1], x.size() * sizeof(float), x.data(), "previous positions", bytes_);
     storage(partial_, grid_.groups() * sizeof(float), nullptr, "residual partials", bytes_);
+    storage(power_, grid_.groups() * sizeof(float), nullptr, "power partials", bytes_);
     const bool uniform_ab = uniform_coefficients(coefficients_);
     std::vector<float> ab(2 * n_);
     for (long i = 0; i < n_; ++i) {
@@ -311,8 +314,15 @@ class ComputeVerlet final : public GpuSpringSolver {
       glUseProgram(energy_program_->id);
       glUniform1i(energy_program_->uniform("u_n"), static_cast<GLint>(n_));
     }
+    glUseProgram(program_->id);
+    glUniform1i(program_->uniform("u_uniform_ab"), uniform_ab ? 1 : 0);
+    glUniform2f(program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
+                static_cast<float>(coefficients_.b[0]));
     u_write_ = program_->uniform("u_write");
     u_measure_ = program_->uniform("u_measure");
+    u_power_ = program_->uniform("u_power");
+    u_ab_ = program_->uniform("u_ab");
+    glUniform1i(u_power_, 0);
     check_gl("gl solver setup");
   }
 
@@ -321,10 +331,13 @@ class ComputeVerlet final : public GpuSpringSolver {
     glUniform1i(u_write_, 1);
     glUniform1i(u_measure_, 0);
     for (int it = 0; it < iterations; ++it) {
+      if (momentum_) momentum_schedule();
       dispatch();
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      if (momentum_) power_sum_ = sum_partials(power_, grid_.groups());  // a few bytes back, every step
       current_ ^= 1;  // the step wrote the new positions over the previous ones
     }
+    glUniform1i(u_power_, 0);
     check_gl("gl Verlet step");
   }
 
@@ -355,7 +368,8 @@ class ComputeVerlet final : public GpuSpringSolver {
 
   void finish() override { glFinish(); }
   std::string backend() const override {
-    return structured_ ? (uniform_ ? "gl-structured-uniform" : "gl-structured") : "gl-general";
+    return std::string(momentum_ ? "momentum-" : "") +
+           (structured_ ? (uniform_ ? "gl-structured-uniform" : "gl-structured") : "gl-general");
   }
   double time_step() const override { return coefficients_.dt; }
   double mean_damping() const override { return coefficients_.mean_damping; }
@@ -366,6 +380,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, x_[current_].id);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, x_[current_ ^ 1].id);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, power_.id);
     if (structured_) {
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, stiffness_.id);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, coef_.id);
@@ -377,7 +392,31 @@ class ComputeVerlet final : public GpuSpringSolver {
     glDispatchCompute(grid_.x, grid_.y, 1);
   }
 
+  // The momentum static solver's step (as the CPU's, springs/verlet_structured.cpp): Nesterov's
+  // momentum b = k / (k + 3) with the gradient restart of O'Donoghue and Candes 2015: when the
+  // last step moved against the force (sum F . v < 0, measured by that step's dispatch), the
+  // velocity is dropped (previous positions := current ones, a copy on the GPU).
+  void momentum_schedule() {
+    if (since_restart_ > 0 && power_sum_ < 0.0) {
+      glBindBuffer(GL_COPY_READ_BUFFER, x_[current_].id);
+      glBindBuffer(GL_COPY_WRITE_BUFFER, x_[current_ ^ 1].id);
+      glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
+                          static_cast<GLsizeiptr>(4 * n_ * sizeof(float)));
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      since_restart_ = 0;
+    }
+    const double b = static_cast<double>(since_restart_) / (since_restart_ + 3);
+    ++since_restart_;
+    glUniform2f(u_ab_, static_cast<float>(coefficients_.a[0]), static_cast<float>(b));
+    glUniform1i(u_power_, 1);
+  }
+
   springs::detail::VerletCoefficients coefficients_;
+  bool momentum_ = false;
+  int since_restart_ = 0;
+  double power_sum_ = 0.0;
+  Buffer power_;
+  GLint u_power_ = -1, u_ab_ = -1;
   long n_ = 0;
   Grid grid_;
   double scale_ = 1.0;
@@ -653,8 +692,10 @@ std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const
   options.validate();
   gpu_options.validate();
   springs::validate(system);
-  if (options.solver != springs::SolverKind::verlet)
-    throw OptionError("solver: the GPU backends run the Verlet solver only; use --backend cpu for --solver static");
+  const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
+  if (momentum && (options.static_method != springs::StaticMethod::momentum || gpu_options.backend != GpuBackend::gl))
+    throw OptionError("solver: on the GPU the static solver runs only as --static-method momentum on --backend gl; "
+                      "use --backend cpu for the others");
   context.make_current();
   if (gpu_options.backend == GpuBackend::gl_gs) {
     if (system.positions.empty()) throw OptionError("system: no point to settle");
@@ -666,7 +707,7 @@ std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const
     throw OptionError(
         "backend: structured needs a lattice whose springs are exactly its model-6/26 neighbours with "
         "stiffness 1 / rest length; use the general or auto path");
-  return std::make_unique<ComputeVerlet>(system, options, std::move(lattice), shape);
+  return std::make_unique<ComputeVerlet>(system, options, std::move(lattice), shape, momentum);
 }
 
 Readback read_positions(GpuSpringSolver& solver, bool pbo) {
@@ -699,10 +740,15 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   // Divergence as on the CPU: every energy_interval iterations the total energy comes back
   // (a reduction on the GPU, a few kilobytes); NaN/Inf, or more than energy_growth_bound times
   // the initial energy, stops the solve with the CPU's SolverError.
-  const springs::detail::VerletCoefficients coefficients = springs::detail::verlet_coefficients(system, options);
+  auto diverged = [&](int iteration, double energy, double initial) {
+    const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
+    springs::detail::throw_verlet_divergence(iteration, energy, initial,
+                                             momentum ? springs::detail::momentum_coefficients(system)
+                                                      : springs::detail::verlet_coefficients(system, options),
+                                             options);
+  };
   const double initial_energy = std::max(solver->energy(), springs::detail::energy_floor(system));
-  if (!std::isfinite(initial_energy))
-    springs::detail::throw_verlet_divergence(0, NAN, initial_energy, coefficients, options);
+  if (!std::isfinite(initial_energy)) diverged(0, NAN, initial_energy);
   const bool run_all = options.tolerance == 0.0;
   if (run_all || residual > options.tolerance) {
     double best = residual;
@@ -716,8 +762,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       if (report.iterations == next_energy) {
         next_energy += options.energy_interval;
         const double e = solver->energy();
-        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy)
-          springs::detail::throw_verlet_divergence(report.iterations, e, initial_energy, coefficients, options);
+        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy) diverged(report.iterations, e, initial_energy);
       }
       if (report.iterations != next_check && report.iterations < options.max_iterations) continue;
       next_check = report.iterations + gpu_options.check_interval;
@@ -735,8 +780,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       }
     }
   }
-  if (!std::isfinite(residual))
-    springs::detail::throw_verlet_divergence(report.iterations, NAN, initial_energy, coefficients, options);
+  if (!std::isfinite(residual)) diverged(report.iterations, NAN, initial_energy);
   solver->finish();
   const auto t2 = clock_type::now();
   const Readback back = read_positions(*solver, gpu_options.pbo_readback);
@@ -760,9 +804,9 @@ BackendChoice choose_backend(const std::string& requested, springs::SolverKind s
   const bool verlet = solver == springs::SolverKind::verlet;
   if (requested == "cpu") return {"cpu", "requested (--backend cpu)"};
   if (requested == "gl" || requested == "gl-gs") {
-    if (!verlet)
-      throw OptionError("backend: " + requested + " runs the Verlet solver only; use --backend cpu or auto for "
-                        "--solver static");
+    if (!verlet && requested == "gl-gs")
+      throw OptionError("backend: gl-gs runs the Verlet solver only; use --backend gl (static method momentum), "
+                        "cpu or auto for --solver static");
     return {requested, "requested (--backend " + requested + ")"};
   }
   if (requested != "auto")

@@ -11,7 +11,11 @@
 ///   compressed-row kernel for any spring list (shaders/verlet_csr.comp); the choice follows
 ///   SettleOptions::backend (the CPU data path option) as on the CPU. Positions stay on the GPU;
 ///   the residual is a reduction on the GPU every GpuSettleOptions::check_interval iterations
-///   (a few bytes come back); one readback at the end.
+///   (a few bytes come back); one readback at the end. `gl` also runs the static solver's
+///   `momentum` method (springs/settle.h: accelerated gradient on the same kernels, unit masses,
+///   the CPU's step 1 / L, Nesterov's momentum with gradient restarts); its restart test needs
+///   the sum of F . v over the lattice after every step, a reduction on the GPU whose few bytes
+///   come back each step.
 /// - `gl-gs`: the thesis's own method: one GL_POINTS vertex per spring, the vertex shader
 ///   computes the force once, a geometry shader emits it at both end points' texels with
 ///   opposite signs, additive blending (GL_ONE, GL_ONE) accumulates it in an RGBA32F force
@@ -68,7 +72,8 @@ struct GpuSettleOptions {
 class GpuSpringSolver {
  public:
   virtual ~GpuSpringSolver() = default;
-  /// Runs `iterations` Verlet steps on the GPU without reading anything back.
+  /// Runs `iterations` Verlet steps on the GPU without reading anything back (static momentum:
+  /// a few bytes per step, the restart test).
   virtual void run(int iterations) = 0;
   /// Relative residual at the current positions (largest spring-force magnitude at a free point /
   /// springs::residual_force_scale, the CPU's measure): one force evaluation and a reduction on
@@ -83,7 +88,8 @@ class GpuSpringSolver {
   virtual std::vector<Vec3> positions() = 0;
   /// Waits until the GPU has finished every queued command (for timing).
   virtual void finish() = 0;
-  /// "gl-structured", "gl-structured-uniform", "gl-general" or "gl-gs".
+  /// "gl-structured", "gl-structured-uniform", "gl-general" or "gl-gs"; the static momentum
+  /// solver prefixes "momentum-".
   virtual std::string backend() const = 0;
   /// Verlet time step and mean damping coefficient used.
   virtual double time_step() const = 0;
@@ -95,8 +101,10 @@ class GpuSpringSolver {
 /// Builds a GPU Verlet solver for `system` (validated) on `context`'s device. `shape`, when given
 /// and the springs are exactly its model-6/26 neighbours with stiffness 1 / rest length, lets `gl`
 /// take the structured kernel (SettleOptions::backend = general forces the spring list,
-/// structured requires the lattice). Throws OptionError (bad options, solver other than
-/// verlet, structured without a lattice), GpuError (context, shaders, memory limits).
+/// structured requires the lattice). SolverKind::static_equilibrium runs StaticMethod::momentum
+/// on `gl` (the CPU's coefficients, float32). Throws OptionError (bad options, a static method
+/// other than momentum or the static solver on gl-gs, structured without a lattice), GpuError
+/// (context, shaders, memory limits).
 std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const springs::SpringSystem& system,
                                                  const springs::SettleOptions& options,
                                                  const GpuSettleOptions& gpu_options,
@@ -145,8 +153,9 @@ constexpr std::size_t kAutoGpuMinPoints = 125000;
 /// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
 /// `solver`: auto takes `gl` only for the Verlet solver, at least `min_gpu_points` points and a
 /// hardware device (`hardware_device`, e.g. hardware_gl_device_available(); only consulted
-/// after the first two tests pass), else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
-/// name or a GPU backend asked for the static solver.
+/// after the first two tests pass), else `cpu`; the reason names the deciding fact. `gl` may be
+/// asked for the static solver (its momentum method, checked by make_gpu_solver). Throws
+/// OptionError for an unknown name or gl-gs asked for the static solver.
 BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
                              bool hardware_device, std::size_t min_gpu_points = kAutoGpuMinPoints);
 

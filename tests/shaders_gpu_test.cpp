@@ -200,6 +200,47 @@ TEST_CASE("every embedded shader compiles and links", "[gpu]") {
   }
 }
 
+TEST_CASE("static momentum on gl reaches the CPU's equilibrium within float32 tolerance", "[gpu]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    const Lattice lattice = moved_cube(12, model);
+    const LatticeShape shape = shape_of(lattice);
+    SettleOptions options;
+    options.solver = SolverKind::static_equilibrium;
+    options.static_method = StaticMethod::momentum;
+    options.tolerance = 1e-9;
+    SpringSystem cpu = lattice.system;
+    const SettleReport reference = settle(cpu, options, &shape);
+    REQUIRE(reference.converged);
+    // The same iteration, step by step, from the same start (before float32 rounding dominates).
+    options.tolerance = 0.0;
+    options.max_iterations = 100;
+    SpringSystem cpu100 = lattice.system;
+    settle(cpu100, options, &shape);
+    const double size = lattice_size(lattice.system.positions);
+    for (Backend path : {Backend::automatic, Backend::general}) {
+      options.backend = path;
+      GpuSettleOptions gpu_options;
+      SpringSystem gpu100 = lattice.system;
+      const GpuSettleReport steps = settle_gpu(context(), gpu100, options, gpu_options, &shape);
+      INFO(steps.backend << " model-" << static_cast<int>(model));
+      CHECK(steps.solver == "static");
+      CHECK(steps.backend.rfind("momentum-gl-", 0) == 0);
+      CHECK(max_distance(gpu100.positions, cpu100.positions) < 1e-4 * size);
+      CHECK(max_distance(cpu100.positions, lattice.system.positions) > 1e-2 * size);  // it moved
+      // To rest: the CPU's equilibrium, to what float32 can reach.
+      options.tolerance = 1e-5;
+      options.max_iterations = 20000;
+      SpringSystem gpu = lattice.system;
+      const GpuSettleReport rest = settle_gpu(context(), gpu, options, gpu_options, &shape);
+      CHECK((rest.converged || rest.stalled));
+      CHECK(rest.residual < 1e-3);
+      CHECK(max_distance(gpu.positions, cpu.positions) < 1e-4 * size);
+      options.tolerance = 0.0;
+      options.max_iterations = 100;
+    }
+  }
+}
+
 TEST_CASE("the GPU energy is the CPU's (kinetic + potential) on every backend", "[gpu]") {
   for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
     const Lattice lattice = moved_cube(8, model);
@@ -436,8 +477,13 @@ TEST_CASE("GPU settle errors: divergence, static solver, structured path without
   }
   options = fixed_iterations(10);
   options.solver = SolverKind::static_equilibrium;
+  options.static_method = StaticMethod::newton;  // the GPU runs the momentum method only
   SpringSystem system = lattice.system;
   CHECK_THROWS_AS(settle_gpu(context(), system, options, GpuSettleOptions{}, &shape), OptionError);
+  options.static_method = StaticMethod::momentum;
+  GpuSettleOptions gs;
+  gs.backend = GpuBackend::gl_gs;  // and on gl only
+  CHECK_THROWS_AS(settle_gpu(context(), system, options, gs, &shape), OptionError);
   options = fixed_iterations(10);
   options.backend = Backend::structured;
   CHECK_THROWS_AS(settle_gpu(context(), system, options, GpuSettleOptions{}, nullptr), OptionError);
@@ -458,7 +504,8 @@ TEST_CASE("backend auto picks the GPU only for Verlet on a hardware device and a
   CHECK(choose_backend("auto", statics, 1000000, true).backend == "cpu");
   CHECK(choose_backend("cpu", verlet, 1000000, true).backend == "cpu");
   CHECK(choose_backend("gl-gs", verlet, 10, false).backend == "gl-gs");
-  CHECK_THROWS_AS(choose_backend("gl", statics, 10, true), OptionError);
+  CHECK(choose_backend("gl", statics, 10, true).backend == "gl");  // the momentum method runs there
+  CHECK_THROWS_AS(choose_backend("gl-gs", statics, 10, true), OptionError);
   CHECK_THROWS_AS(choose_backend("cuda", verlet, 10, true), OptionError);
 }
 
