@@ -247,14 +247,20 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
       const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
       const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
       const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
-      const __m512d f[3] = {_mm512_mul_pd(w, lx), _mm512_mul_pd(w, ly), _mm512_mul_pd(w, lz)};
-      for (int c = 0; c < 3; ++c) own[c] = _mm512_add_pd(own[c], f[c]);
+      const __m512d l[3] = {lx, ly, lz};
       if (d == r.along_x) {
-        for (int c = 0; c < 3; ++c) along[c] = f[c];
-      } else if (r.push[d][0]) {
         for (int c = 0; c < 3; ++c) {
-          double* target = r.push[d][c] + i + r.dx[d];
-          store8(m, target, _mm512_sub_pd(load8(m, target), f[c]));
+          along[c] = _mm512_mul_pd(w, l[c]);
+          own[c] = _mm512_add_pd(own[c], along[c]);
+        }
+      } else {
+        // f = w l fused into the sums: +f to the own point, -f to the target
+        for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
+        if (r.push[d][0]) {
+          for (int c = 0; c < 3; ++c) {
+            double* target = r.push[d][c] + i + r.dx[d];
+            store8(m, target, _mm512_fnmadd_pd(w, l[c], load8(m, target)));
+          }
         }
       }
     }
