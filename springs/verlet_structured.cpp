@@ -11,13 +11,14 @@
 // (j, k), rows in index order), to the same row, the next one and the three rows around it in
 // the next plane, so once a row's own springs are evaluated its force is complete: the row is
 // integrated at once (forces of the current positions, new positions written over the previous
-// ones, which nothing else reads) and its accumulator slot reused. The accumulators are a ring
-// of ny + 2 rows per task, in cache. Tasks take slabs of whole planes; a slab first evaluates
-// the forward springs of the plane before it (the ones that end in the slab), in the same order
-// as the slab before it does, so every point's force is summed in the same order whatever the
-// slabs: the result does not depend on the thread count or the grain. Compared with gathering
-// (each point evaluating all its springs) this halves the square roots, which bound the
-// model-26 iteration.
+// ones, which nothing else reads). The pushes go to per-task accumulators of two planes (the
+// current and the next). Tasks take tiles: slabs of planes x strips of rows (so a task's data
+// stays in the second-level cache). A tile first evaluates the rows around it that push into
+// it (the plane before the slab, forward directions only; the rows on both sides of the strip
+// in each plane), in the order one pass over the whole lattice makes them, so every point's
+// force is summed in the same order whatever the tiles: the result does not depend on the
+// thread count or the grain (tested bitwise). Compared with gathering (each point evaluating
+// all its springs) this halves the inverse square roots, which bound the model-26 iteration.
 //
 // Where the processor has AVX-512, a row is one loop written with intrinsics (fused_row_avx512:
 // own springs summed in registers, integration in the same pass) and takes 1 / sqrt from
