@@ -20,11 +20,12 @@
 // thread count or the grain (tested bitwise). Compared with gathering (each point evaluating
 // all its springs) this halves the inverse square roots, which bound the model-26 iteration.
 //
-// Where the processor has AVX-512, a row is one loop written with intrinsics (fused_row_avx512:
-// own springs summed in registers, integration in the same pass) and takes 1 / sqrt from
-// VRSQRT14PD refined by one third-order step (relative error below about 6e-13); elsewhere
-// plain C++ loops (spring spans, then integrate_row) divide by sqrt, vectorised by the
-// compiler. Both are deterministic; they differ from each other by rounding. When
+// This path needs AVX-512: a row is one loop written with intrinsics (fused_row_avx512: own
+// springs summed in registers, integration in the same pass) and takes 1 / sqrt from
+// VRSQRT14PD refined by one third-order step (relative error below about 6e-13). Elsewhere (or
+// after set_structured_simd(false)) the portable gather path runs: every spring evaluated from
+// both ends with a square root and a division, vectorised by the compiler (sweep_gather). Both
+// are deterministic; they differ from each other by rounding. When
 // every direction's springs share one stiffness and every point the same coefficients, the rows
 // read scalars instead of those arrays (detect_uniform). The same kernels run the momentum
 // static solver (per-step b, gradient restarts).
@@ -49,6 +50,12 @@
 #include <cstring>
 #include <limits>
 #include <utility>
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define FASCICLE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define FASCICLE_CLONES
+#endif
 
 namespace fascicle::springs::detail {
 
@@ -84,82 +91,121 @@ inline double double_of(std::uint64_t u) {
   return v;
 }
 
-// The springs from `count` consecutive points of a source row (positions s*, stiffness k or the
-// scalar ku when k is null) to the same count of points of a target row (t*): f = (k - 1/|l|) l,
-// l = t - s; f is added to the source accumulators (a*, skipped when ax is null) and subtracted
-// from the target accumulators (b*, skipped when bx is null). The target accumulators may be the
-// source ones shifted by one point (the springs along x): each vector of springs is added to the
-// sources before it is subtracted from the targets.
-struct SpringSpan {
-  const double* sx;
-  const double* sy;
-  const double* sz;
-  const double* tx;
-  const double* ty;
-  const double* tz;
-  const double* k;
-  double ku;
-  double* ax;
-  double* ay;
-  double* az;
-  double* bx;
-  double* by;
-  double* bz;
-  long count;
+// The portable path (processors without AVX-512, or set_structured_simd(false)): the gather
+// formulation. Each point sums its springs from both ends at the current positions and its new
+// position is written over its previous one; rows of interior points without a fixed point run
+// through a branch-free loop the compiler vectorises (compiled for AVX-512, AVX2 and baseline
+// x86-64, picked at run time); points on the boundary of the index box take a checked scalar
+// path. Every point's force is a function of the current positions alone, so the result does
+// not depend on the traversal order either.
+struct Kernel {
+  const double* x;
+  const double* y;
+  const double* z;
+  double* px;  // previous positions, overwritten with the new ones
+  double* py;
+  double* pz;
+  const double* k[kMaxDirections];
+  long offset[kMaxDirections];
+  const double* a;
+  const double* b;
+  const std::uint8_t* fixed;
+  // Uniform lattices: one stiffness per direction, one a and one b for every point.
+  double k_uniform[kMaxDirections];
+  double a_uniform, b_uniform;
 };
 
-void spring_span_plain(const SpringSpan& s) {
-  for (long i = 0; i < s.count; ++i) {
-    const double lx = s.tx[i] - s.sx[i], ly = s.ty[i] - s.sy[i], lz = s.tz[i] - s.sz[i];
-    const double w = (s.k ? s.k[i] : s.ku) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
-    const double fx = w * lx, fy = w * ly, fz = w * lz;
-    if (s.ax) {
-      s.ax[i] += fx;
-      s.ay[i] += fy;
-      s.az[i] += fz;
-    }
-    if (s.bx) {
-      s.bx[i] -= fx;
-      s.by[i] -= fy;
-      s.bz[i] -= fz;
-    }
+// Adds the two springs of half direction d (towards p + off and from p - off) to f; their
+// stiffnesses are k[p] and k[p - off], or `uniform` for every spring when Uniform.
+template <bool Uniform>
+inline __attribute__((always_inline)) void add_direction(const double* __restrict x, const double* __restrict y,
+                                                         const double* __restrict z, const double* __restrict k,
+                                                         double uniform, long off, long p, double xp, double yp,
+                                                         double zp, double& fx, double& fy, double& fz) {
+  {
+    const long q = p + off;
+    const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
+    const double w = (Uniform ? uniform : k[p]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    fx += w * lx;
+    fy += w * ly;
+    fz += w * lz;
+  }
+  {
+    const long q = p - off;
+    const double lx = x[q] - xp, ly = y[q] - yp, lz = z[q] - zp;
+    const double w = (Uniform ? uniform : k[q]) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
+    fx += w * lx;
+    fy += w * ly;
+    fz += w * lz;
   }
 }
 
-// The same with separate accumulators (no overlap): the compiler may vectorise it.
-void spring_span_plain_disjoint(const SpringSpan& s) {
-  const double* __restrict sx = s.sx;
-  const double* __restrict sy = s.sy;
-  const double* __restrict sz = s.sz;
-  const double* __restrict tx = s.tx;
-  const double* __restrict ty = s.ty;
-  const double* __restrict tz = s.tz;
-  double* __restrict ax = s.ax;
-  double* __restrict ay = s.ay;
-  double* __restrict az = s.az;
-  double* __restrict bx = s.bx;
-  double* __restrict by = s.by;
-  double* __restrict bz = s.bz;
-  const bool own = ax != nullptr, push = bx != nullptr;
-  const double* __restrict k = s.k;
-  const double ku = s.ku;
-#pragma omp simd
-  for (long i = 0; i < s.count; ++i) {
-    const double lx = tx[i] - sx[i], ly = ty[i] - sy[i], lz = tz[i] - sz[i];
-    const double w = (k ? k[i] : ku) - 1.0 / std::sqrt(lx * lx + ly * ly + lz * lz);
-    const double fx = w * lx, fy = w * ly, fz = w * lz;
-    if (own) {
-      ax[i] += fx;
-      ay[i] += fy;
-      az[i] += fz;
-    }
-    if (push) {
-      bx[i] -= fx;
-      by[i] -= fy;
-      bz[i] -= fz;
+// One row of interior points. Returns the largest squared force (as bits, see bits_of) and adds
+// sum f . (x - x_previous) to `power` (the momentum solver's restart test).
+template <bool Write, bool UniformK, bool UniformAB, std::size_t... Ds>
+inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1, double* power,
+                                                             std::index_sequence<Ds...>) {
+  const double* __restrict x = g.x;
+  const double* __restrict y = g.y;
+  const double* __restrict z = g.z;
+  double* __restrict px = g.px;
+  double* __restrict py = g.py;
+  double* __restrict pz = g.pz;
+  const double* __restrict a = g.a;
+  const double* __restrict b = g.b;
+  const double* const k[sizeof...(Ds)] = {g.k[Ds]...};
+  const long off[sizeof...(Ds)] = {g.offset[Ds]...};
+  const double ku[sizeof...(Ds)] = {g.k_uniform[Ds]...};
+  const double au = g.a_uniform, bu = g.b_uniform;
+  std::uint64_t largest = 0;
+  double fv = 0.0;
+  // Point p writes only px/py/pz[p], which no other iteration reads: no loop-carried dependence
+  // (GCC's restrict on locals is too weak to prove it with three output streams). The simd
+  // reductions are deterministic for a given machine (lane order is fixed).
+#pragma omp simd reduction(max : largest) reduction(+ : fv)
+  for (long p = p0; p < p1; ++p) {
+    const double xp = x[p], yp = y[p], zp = z[p];
+    double fx = 0.0, fy = 0.0, fz = 0.0;
+    (add_direction<UniformK>(x, y, z, k[Ds], ku[Ds], off[Ds], p, xp, yp, zp, fx, fy, fz), ...);
+    const std::uint64_t bits = bits_of(fx * fx + fy * fy + fz * fz);
+    largest = bits > largest ? bits : largest;
+    const double vx = xp - px[p], vy = yp - py[p], vz = zp - pz[p];
+    fv += fx * vx + fy * vy + fz * vz;
+    if (Write) {
+      const double ap = UniformAB ? au : a[p], bp = UniformAB ? bu : b[p];
+      px[p] = xp + bp * vx + ap * fx;
+      py[p] = yp + bp * vy + ap * fy;
+      pz[p] = zp + bp * vz + ap * fz;
     }
   }
+  *power += fv;
+  return largest;
 }
+
+
+using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*);
+#define FASCICLE_ROW(name, write, uk, uab, d)                                                   \
+  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power) {     \
+    return row_body<write, uk, uab>(g, p0, p1, power, std::make_index_sequence<d>());         \
+  }
+FASCICLE_ROW(force6, false, false, false, 3)
+FASCICLE_ROW(force26, false, false, false, 13)
+FASCICLE_ROW(force6_k, false, true, false, 3)
+FASCICLE_ROW(force26_k, false, true, false, 13)
+FASCICLE_ROW(step6, true, false, false, 3)
+FASCICLE_ROW(step26, true, false, false, 13)
+FASCICLE_ROW(step6_ab, true, false, true, 3)
+FASCICLE_ROW(step26_ab, true, false, true, 13)
+FASCICLE_ROW(step6_k, true, true, false, 3)
+FASCICLE_ROW(step26_k, true, true, false, 13)
+FASCICLE_ROW(step6_kab, true, true, true, 3)
+FASCICLE_ROW(step26_kab, true, true, true, 13)
+#undef FASCICLE_ROW
+
+// kRows[write][uniform stiffness][uniform a, b][model-26]; forces alone ignore a, b.
+const RowFunction kRows[2][2][2][2] = {
+    {{{force6, force26}, {force6, force26}}, {{force6_k, force26_k}, {force6_k, force26_k}}},
+    {{{step6, step26}, {step6_ab, step26_ab}}, {{step6_k, step26_k}, {step6_kab, step26_kab}}}};
 
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
 // GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked forms) and then
@@ -316,65 +362,6 @@ std::uint64_t fused_row_avx512(const FusedRow& r, double* power) {
 #pragma GCC diagnostic pop
 #endif
 
-// Integrates one row whose forces are complete. Returns the largest squared force at a free
-// point (as bits, see bits_of) and adds sum f . (x - x_previous) over free points to `power`.
-struct RowIntegration {
-  const double* x;
-  const double* y;
-  const double* z;
-  double* px;
-  double* py;
-  double* pz;
-  const double* fx;
-  const double* fy;
-  const double* fz;
-  const double* a;  // null: au for every point
-  const double* b;  // null: bu
-  double au, bu;
-  const std::uint8_t* fixed;
-  long count;
-  bool write;
-};
-
-std::uint64_t integrate_row(const RowIntegration& r, double* power) {
-  const double* __restrict x = r.x;
-  const double* __restrict y = r.y;
-  const double* __restrict z = r.z;
-  double* __restrict px = r.px;
-  double* __restrict py = r.py;
-  double* __restrict pz = r.pz;
-  const double* __restrict fxs = r.fx;
-  const double* __restrict fys = r.fy;
-  const double* __restrict fzs = r.fz;
-  const double* __restrict a = r.a;
-  const double* __restrict b = r.b;
-  const std::uint8_t* __restrict fixed = r.fixed;
-  const double au = r.au, bu = r.bu;
-  const bool per_point = a != nullptr, write = r.write;
-  std::uint64_t largest = 0;
-  double fv = 0.0;
-  // Point i writes only px/py/pz[i], which no other iteration reads. The simd reductions are
-  // deterministic for a given machine (lane order is fixed).
-#pragma omp simd reduction(max : largest) reduction(+ : fv)
-  for (long i = 0; i < r.count; ++i) {
-    const bool is_free = fixed[i] == 0;
-    const double fx = fxs[i], fy = fys[i], fz = fzs[i];
-    const double xp = x[i], yp = y[i], zp = z[i];
-    const double vx = xp - px[i], vy = yp - py[i], vz = zp - pz[i];
-    const std::uint64_t bits = is_free ? bits_of(fx * fx + fy * fy + fz * fz) : 0;
-    largest = bits > largest ? bits : largest;
-    fv += is_free ? fx * vx + fy * vy + fz * vz : 0.0;
-    if (write) {
-      const double ap = per_point ? a[i] : au, bp = per_point ? b[i] : bu;
-      px[i] = is_free ? xp + bp * vx + ap * fx : xp;
-      py[i] = is_free ? yp + bp * vy + ap * fy : yp;
-      pz[i] = is_free ? zp + bp * vz + ap * fz : zp;
-    }
-  }
-  *power += fv;
-  return largest;
-}
-
 // Accumulators of one task: two planes of ny rows of nx forces per coordinate (plane k and
 // k + 1, alternating); a task touches only the rows of its strip.
 struct Ring {
@@ -442,6 +429,12 @@ class StructuredVerlet final : public SpringSolver {
     row_largest_.assign(rows_, 0);
     row_power_.assign(rows_, 0.0);
     simd_ = structured_simd_active();
+    // The portable path's vectorised rows have no fixed-point logic: a row with a fixed interior
+    // point takes the checked path.
+    row_has_fixed_.assign(rows_, 0);
+    for (long row = 0; row < rows_; ++row)
+      for (int i = 1; i + 1 < shape.nx; ++i)
+        if (fixed_[row * shape.nx + i]) row_has_fixed_[row] = 1;
     row_energy_.assign(rows_, 0.0);
     detect_uniform();
     if (momentum_) uniform_ab_ = true;  // one a for every point, b set each step
@@ -599,87 +592,107 @@ class StructuredVerlet final : public SpringSolver {
   }
 #endif
 
-  // Evaluates the springs of row `r` (= j + ny k) in direction order, pushing them into the
-  // ring: +f to row r unless `own` is false, -f to the target row when the tile holds it.
-  // `forward_only`: only the directions into the next plane (a slab's prologue).
-  void row_springs(Ring& ring, long r, const Tile& tile, bool own, bool forward_only) const {
-    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
-    const long j = r % ny, k = r / ny;
-    const long base = r * nx;
-    for (int d = 0; d < directions_; ++d) {
-      const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
-      if (forward_only && dz == 0) continue;
-      if (j + dy < 0 || j + dy >= ny || k + dz >= nz) continue;
-      const long i0 = dx < 0 ? 1 : 0, i1 = dx > 0 ? nx - 1 : nx;
-      if (i1 <= i0) continue;
-      const long target = r + dy + ny * dz;
-      const long p = base + i0, q = p + offset_[d];
-      SpringSpan s;
-      s.sx = x_[0].data() + p;
-      s.sy = x_[1].data() + p;
-      s.sz = x_[2].data() + p;
-      s.tx = x_[0].data() + q;
-      s.ty = x_[1].data() + q;
-      s.tz = x_[2].data() + q;
-      s.k = uniform_k_ ? nullptr : stiffness_[d].data() + p;
-      s.ku = k_uniform_[d];
-      if (own) {
-        s.ax = ring.row(0, r) + i0;
-        s.ay = ring.row(1, r) + i0;
-        s.az = ring.row(2, r) + i0;
-      } else {
-        s.ax = s.ay = s.az = nullptr;
-      }
-      if (tile.holds(j + dy, k + dz)) {
-        s.bx = ring.row(0, target) + i0 + dx;
-        s.by = ring.row(1, target) + i0 + dx;
-        s.bz = ring.row(2, target) + i0 + dx;
-      } else {
-        s.bx = s.by = s.bz = nullptr;
-      }
-      s.count = i1 - i0;
-      if (target == r && own) spring_span_plain(s);  // accumulators overlap (springs along x)
-      else spring_span_plain_disjoint(s);
-    }
-  }
-
-  // One row: the AVX-512 loop or the plain one. `integrate`: a row of the tile (own springs,
-  // then the row is complete and integrated); else a row around it (pushes into the tile only).
+  // One row of the AVX-512 path. `integrate`: a row of the tile (own springs, then the row is
+  // complete and integrated); else a row around it (pushes into the tile only).
   void process_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
-    if (simd_) {
-      double power = 0.0;
-      const std::uint64_t largest = fused_row_avx512(fused_row(ring, r, tile, integrate, forward_only, write), &power);
-      if (integrate) {
-        row_largest_[r] = largest;
-        row_power_[r] = power;
-      }
-      return;
-    }
-#endif
-    row_springs(ring, r, tile, integrate, forward_only);
-    if (!integrate) return;
-    const long base = r * shape_.nx;
-    RowIntegration in;
-    in.x = x_[0].data() + base;
-    in.y = x_[1].data() + base;
-    in.z = x_[2].data() + base;
-    in.px = p_[0].data() + base;
-    in.py = p_[1].data() + base;
-    in.pz = p_[2].data() + base;
-    in.fx = ring.row(0, r);
-    in.fy = ring.row(1, r);
-    in.fz = ring.row(2, r);
-    in.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
-    in.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
-    in.au = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
-    in.bu = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
-    in.fixed = fixed_.data() + base;
-    in.count = shape_.nx;
-    in.write = write;
     double power = 0.0;
-    row_largest_[r] = integrate_row(in, &power);
-    row_power_[r] = power;
+    const std::uint64_t largest = fused_row_avx512(fused_row(ring, r, tile, integrate, forward_only, write), &power);
+    if (integrate) {
+      row_largest_[r] = largest;
+      row_power_[r] = power;
+    }
+#else
+    (void)ring, (void)r, (void)tile, (void)integrate, (void)forward_only, (void)write;
+#endif
+  }
+
+  Kernel kernel() {
+    Kernel g;
+    g.x = x_[0].data();
+    g.y = x_[1].data();
+    g.z = x_[2].data();
+    g.px = p_[0].data();
+    g.py = p_[1].data();
+    g.pz = p_[2].data();
+    for (int d = 0; d < kMaxDirections; ++d) {
+      g.k[d] = d < directions_ ? stiffness_[d].data() : nullptr;
+      g.offset[d] = d < directions_ ? offset_[d] : 0;
+    }
+    g.a = coefficients_.a.data();
+    g.b = coefficients_.b.data();
+    g.fixed = fixed_.data();
+    for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
+    g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
+    return g;
+  }
+
+  // Checked scalar path for a point on the boundary of the index box.
+  std::uint64_t boundary_point(const Kernel& g, long p, int i, int j, int k, bool write, double* power) const {
+    const double xp = g.x[p], yp = g.y[p], zp = g.z[p];
+    double f[3] = {0.0, 0.0, 0.0};
+    for (int d = 0; d < directions_; ++d) {
+      for (int sign = 1; sign >= -1; sign -= 2) {
+        const int i2 = i + sign * dir_[d][0], j2 = j + sign * dir_[d][1], k2 = k + sign * dir_[d][2];
+        if (i2 < 0 || j2 < 0 || k2 < 0 || i2 >= shape_.nx || j2 >= shape_.ny || k2 >= shape_.nz) continue;
+        const long q = p + sign * offset_[d];
+        const double l[3] = {g.x[q] - xp, g.y[q] - yp, g.z[q] - zp};
+        const double w = g.k[d][sign > 0 ? p : q] - 1.0 / std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+        for (int c = 0; c < 3; ++c) f[c] += w * l[c];
+      }
+    }
+    const bool is_fixed = g.fixed[p] != 0;
+    if (is_fixed) {
+      if (write) {
+        g.px[p] = xp;
+        g.py[p] = yp;
+        g.pz[p] = zp;
+      }
+      return 0;
+    }
+    const double v[3] = {xp - g.px[p], yp - g.py[p], zp - g.pz[p]};
+    *power += f[0] * v[0] + f[1] * v[1] + f[2] * v[2];
+    if (write) {
+      const double a = uniform_ab_ ? g.a_uniform : g.a[p], b = uniform_ab_ ? g.b_uniform : g.b[p];
+      g.px[p] = xp + b * v[0] + a * f[0];
+      g.py[p] = yp + b * v[1] + a * f[1];
+      g.pz[p] = zp + b * v[2] + a * f[2];
+    }
+    return bits_of(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+  }
+
+  // The portable pass (gather).
+  double sweep_gather(bool write) {
+    const Kernel g = kernel();
+    const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
+    const bool model6 = directions_ == 3;
+    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
+      for (long row = range.begin(); row != range.end(); ++row) {
+        const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
+        const long base = row * nx;
+        std::uint64_t largest = 0;
+        double power = 0.0;
+        auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
+        if (j == 0 || k == 0 || j == ny - 1 || k == nz - 1 || nx < 3 || row_has_fixed_[row]) {
+          for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write, &power));
+        } else {
+          take(boundary_point(g, base, 0, j, k, write, &power));
+          const long p0 = base + 1, p1 = base + nx - 1;
+          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power));
+          take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
+        }
+        row_largest_[row] = largest;
+        row_power_[row] = power;
+      }
+    }, tbb::simple_partitioner());
+    std::uint64_t largest = 0;
+    power_ = 0.0;
+    for (long row = 0; row < rows_; ++row) {
+      largest = std::max(largest, row_largest_[row]);
+      power_ += row_power_[row];
+    }
+    return double_of(largest);
   }
 
   // One pass over the lattice: forces at the current positions, new positions into p_ when
@@ -692,6 +705,7 @@ class StructuredVerlet final : public SpringSolver {
   // Every row that pushes into a point does so in the same order as in one pass over the whole
   // lattice, so each point's force is summed in the same order whatever the tiles.
   double sweep(bool write) {
+    if (!simd_) return sweep_gather(write);
     const long ny = shape_.ny;
     tbb::parallel_for(tbb::blocked_range<long>(0, slabs_ * strips_, 1), [&](const tbb::blocked_range<long>& range) {
       Ring& ring = rings_.local();
@@ -730,7 +744,8 @@ class StructuredVerlet final : public SpringSolver {
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
   long n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
-  bool simd_ = false;  // AVX-512 spring loop (structured_simd_active at construction)
+  bool simd_ = false;  // AVX-512 path (structured_simd_active at construction), else gather
+  std::vector<char> row_has_fixed_;
   tbb::enumerable_thread_specific<Ring> rings_;
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
