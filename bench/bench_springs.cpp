@@ -8,6 +8,7 @@
 #include "geometry/errors.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
+#include "springs/solvers_internal.h"
 #include "springs/template_plot.h"
 
 #include <nlohmann/json.hpp>
@@ -22,6 +23,8 @@
 #include <memory>
 #include <sstream>
 
+#include <time.h>
+
 namespace fascicle::bench {
 
 namespace {
@@ -35,6 +38,7 @@ struct SpringsBenchArgs {
   std::string trade_sizes = "20,50,100";
   std::string sections = "bandwidth,speed,rest,trade";
   std::string trade_solvers;    // empty: all
+  std::string trade_models = "6,26";
   std::string json;
   std::string plots;            // folder for the template pictures (section "templates")
   double min_seconds = 0.5;     // per speed measurement
@@ -43,6 +47,7 @@ struct SpringsBenchArgs {
   double rest_tolerance = 1e-4; // "at rest" for tables 7.4-7.6
   double rest_dt = 0.01;        // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
   int local_global_max_size = 20;  // the sparse Cholesky factor grows too fast above this
+  bool plain_kernel = false;    // structured path without the AVX-512 spring loop
 };
 
 std::vector<int> parse_list(const std::string& text, const std::string& option) {
@@ -67,6 +72,24 @@ bool has_section(const SpringsBenchArgs& args, const std::string& name) {
 
 double seconds_since(clock_type::time_point t0) {
   return std::chrono::duration<double>(clock_type::now() - t0).count();
+}
+
+// Processor time of this process, all threads (seconds): beside the wall time, it shows how much
+// of the machine the run got while other work shared it.
+double process_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// The 1-, 5- and 15-minute load averages, as `uptime` prints them.
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  double a = 0, b = 0, c = 0;
+  if (!(in >> a >> b >> c)) return "unknown";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.2f %.2f %.2f", a, b, c);
+  return buffer;
 }
 
 // The bench problem: a regular n^3 lattice of the unit cube whose boundary points were moved by
@@ -121,7 +144,11 @@ double streamed_bytes(const Lattice& lattice, const std::string& backend) {
 
 void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& records) {
   std::printf("\n== ms per Verlet iteration (thesis tables 7.1, 7.2: 2011 CPU 100^3 model-6 274 ms, model-26 907 ms)\n");
-  std::printf("%6s %6s %-11s %12s %10s %12s %8s\n", "n", "model", "backend", "ms/iter", "MB/iter", "stream ms", "ratio");
+  std::printf("   (structured spring loop: %s; cpu ms = processor time of all threads per iteration;\n"
+              "    load average before: %s)\n",
+              springs::detail::structured_simd_active() ? "AVX-512" : "plain C++", load_average().c_str());
+  std::printf("%6s %6s %-19s %10s %10s %10s %12s %8s\n", "n", "model", "backend", "ms/iter", "cpu ms", "MB/iter",
+              "stream ms", "ratio");
   for (int n : parse_list(args.sizes, "sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
       std::unique_ptr<Lattice> lattice;
@@ -147,19 +174,23 @@ void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& recor
         }
         for (int i = 0; i < 2; ++i) solver->step();
         int iterations = 0;
+        const double c0 = process_cpu_seconds();
         const auto t0 = clock_type::now();
         while (iterations < 3 || (seconds_since(t0) < args.min_seconds && iterations < 2000)) {
           solver->step();
           ++iterations;
         }
         const double ms = 1e3 * seconds_since(t0) / iterations;
+        const double cpu_ms = 1e3 * (process_cpu_seconds() - c0) / iterations;
         const double bytes = streamed_bytes(*lattice, solver->backend());
         const double stream_ms = 1e3 * bytes / (triad * 1e9);
-        std::printf("%6d %6d %-11s %12.3f %10.1f %12.3f %8.2f\n", n, static_cast<int>(model), solver->backend().c_str(), ms,
-                    bytes / 1e6, stream_ms, ms / stream_ms);
+        std::printf("%6d %6d %-19s %10.3f %10.3f %10.1f %12.3f %8.2f\n", n, static_cast<int>(model),
+                    solver->backend().c_str(), ms, cpu_ms, bytes / 1e6, stream_ms, ms / stream_ms);
         std::fflush(stdout);
         records.push_back({{"section", "speed"}, {"n", n}, {"model", static_cast<int>(model)}, {"solver", "verlet"},
-                           {"backend", solver->backend()}, {"ms_per_iteration", ms}, {"iterations_timed", iterations},
+                           {"backend", solver->backend()}, {"ms_per_iteration", ms}, {"cpu_ms_per_iteration", cpu_ms},
+                           {"spring_loop", springs::detail::structured_simd_active() ? "avx512" : "plain"},
+                           {"load_average", load_average()}, {"iterations_timed", iterations},
                            {"streamed_bytes", bytes}, {"stream_ms", stream_ms}, {"ratio_to_stream", ms / stream_ms}});
       }
     }
@@ -267,6 +298,8 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
   const double thresholds[3] = {1e-2, 1e-4, 1e-6};
   for (int n : parse_list(args.trade_sizes, "trade-sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+      if (("," + args.trade_models + ",").find("," + std::to_string(static_cast<int>(model)) + ",") == std::string::npos)
+        continue;
       const Lattice lattice = bench_lattice(n, model, 1.1 / (static_cast<double>(n) * n * n));
       const LatticeShape shape = shape_of(lattice);
       for (const TradeSolver& entry : solvers) {
@@ -281,6 +314,8 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
         }
         SettleOptions options = entry.options;
         options.tolerance = 1e-6;
+        const std::string load_before = load_average();
+        const double c0 = process_cpu_seconds();
         const auto t0 = clock_type::now();
         std::unique_ptr<SpringSolver> solver = make_solver(lattice.system, options, &shape);
         const double setup = seconds_since(t0);
@@ -310,14 +345,16 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
         } catch (const SolverError& e) {
           status = std::string("diverged: ") + e.what();
         }
+        const double wall = seconds_since(t0), cpu = process_cpu_seconds() - c0;
         auto cell = [](double v) {
           char buffer[32];
           if (v < 0) std::snprintf(buffer, sizeof buffer, "%10s", "-");
           else std::snprintf(buffer, sizeof buffer, "%10.3f", v);
           return std::string(buffer);
         };
-        std::printf("%5d %6d %-22s %10.3f %s %s %s %12d%s\n", n, static_cast<int>(model), entry.name.c_str(), setup,
-                    cell(reached[0]).c_str(), cell(reached[1]).c_str(), cell(reached[2]).c_str(), iterations,
+        std::printf("%5d %6d %-22s %10.3f %s %s %s %12d  wall %.1f s, cpu %.1f s, load %s%s\n", n,
+                    static_cast<int>(model), entry.name.c_str(), setup, cell(reached[0]).c_str(),
+                    cell(reached[1]).c_str(), cell(reached[2]).c_str(), iterations, wall, cpu, load_before.c_str(),
                     status == "ok" ? "" : ("  (" + status + ", residual " + std::to_string(residual) + ")").c_str());
         std::fflush(stdout);
         for (int k = 0; k < 3; ++k)
@@ -326,13 +363,15 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
                              {"seconds", reached[k] >= 0 ? nlohmann::json(reached[k]) : nlohmann::json(nullptr)},
                              {"setup_seconds", setup}, {"iterations", iterations},
                              {"inner_iterations", solver->inner_iterations()}, {"status", status},
-                             {"final_residual", residual}});
+                             {"final_residual", residual}, {"wall_seconds", wall}, {"cpu_seconds", cpu},
+                             {"load_average_before", load_before}});
       }
     }
   }
 }
 
 void run_springs_bench(const SpringsBenchArgs& args) {
+  springs::detail::set_structured_simd(!args.plain_kernel);
   nlohmann::json records = nlohmann::json::array();
   if (has_section(args, "templates")) {
     if (args.plots.empty()) throw OptionError("plots: section templates needs --plots FOLDER");
@@ -372,10 +411,13 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--trade-solvers", args->trade_solvers,
                   "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, "
                   "static-local-global, static-local-global-plain); default all");
+  cmd->add_option("--trade-models", args->trade_models, "Spring models for the trade (6, 26)")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();
   cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")->capture_default_str();
+  cmd->add_flag("--plain-kernel", args->plain_kernel,
+               "Structured path: the plain C++ spring loop instead of AVX-512 (for comparison)");
   cmd->add_option("--json", args->json, "Write the records as JSON here");
   cmd->add_option("--plots", args->plots, "Folder for the template pictures (section templates)");
   cmd->callback([args] { run_springs_bench(*args); });

@@ -160,6 +160,21 @@ double largest_partial(const Buffer& partial, std::size_t groups) {
   return largest;
 }
 
+// Sum of the per-group energies in double; NaN when any is NaN or Inf (divergence).
+double sum_partials(const Buffer& partial, std::size_t groups) {
+  std::vector<float> values(groups);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, partial.id);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(groups * sizeof(float)), values.data());
+  check_gl("energy readback");
+  double sum = 0.0;
+  for (float v : values) {
+    if (!std::isfinite(v)) return std::numeric_limits<double>::quiet_NaN();
+    sum += static_cast<double>(v);
+  }
+  return sum;
+}
+
 // The structured kernel's per-direction stiffness, or nothing when `system` is not exactly the
 // lattice `shape` (the CPU structured path's test: every spring a half-offset neighbour pair,
 // each once, stiffness 1 / rest, every in-lattice neighbour pair joined).
@@ -198,8 +213,10 @@ std::optional<std::vector<std::vector<double>>> lattice_stiffness(const SpringSy
 class ComputeVerlet final : public GpuSpringSolver {
  public:
   ComputeVerlet(const SpringSystem& system, const SettleOptions& options,
-                std::optional<std::vector<std::vector<double>>> lattice, const LatticeShape* shape)
-      : coefficients_(springs::detail::verlet_coefficients(system, options)) {
+                std::optional<std::vector<std::vector<double>>> lattice, const LatticeShape* shape, bool momentum)
+      : coefficients_(momentum ? springs::detail::momentum_coefficients(system)
+                               : springs::detail::verlet_coefficients(system, options)),
+        momentum_(momentum) {
     n_ = static_cast<long>(system.positions.size());
     if (n_ > std::numeric_limits<int>::max() / 16) throw GpuError("OpenGL: too many points for 32-bit indices");
     grid_ = grid_for(n_);
@@ -209,6 +226,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     storage(x_[0], x.size() * sizeof(float), x.data(), "positions", bytes_);
     storage(x_[1], x.size() * sizeof(float), x.data(), "previous positions", bytes_);
     storage(partial_, grid_.groups() * sizeof(float), nullptr, "residual partials", bytes_);
+    storage(power_, grid_.groups() * sizeof(float), nullptr, "power partials", bytes_);
     const bool uniform_ab = uniform_coefficients(coefficients_);
     std::vector<float> ab(2 * n_);
     for (long i = 0; i < n_; ++i) {
@@ -263,6 +281,17 @@ class ComputeVerlet final : public GpuSpringSolver {
       glUniform1fv(program_->uniform("u_k"), directions_, k_uniform_.data());
       glUniform2f(program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
                   static_cast<float>(coefficients_.b[0]));
+      energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define LATTICE 1\n"));
+      const Program& e = *energy_program_;
+      glUseProgram(e.id);
+      glUniform3i(e.uniform("u_size"), shape_.nx, shape_.ny, shape_.nz);
+      glUniform1i(e.uniform("u_n"), static_cast<GLint>(n_));
+      glUniform1i(e.uniform("u_directions"), directions_);
+      glUniform3iv(e.uniform("u_dir"), directions_, dir.data());
+      glUniform1iv(e.uniform("u_offset"), directions_, offset.data());
+      glUniform1i(e.uniform("u_uniform"), uniform_ ? 1 : 0);
+      glUniform1fv(e.uniform("u_k"), directions_, k_uniform_.data());
+      glUniform2f(e.uniform("u_ab"), static_cast<float>(coefficients_.a[0]), static_cast<float>(coefficients_.b[0]));
     } else {
       program_ = std::make_unique<Program>(compile_program({"verlet_csr.comp"}));
       const springs::detail::SpringRows csr = springs::detail::spring_rows(system);
@@ -281,9 +310,19 @@ class ComputeVerlet final : public GpuSpringSolver {
       storage(coef_, ab.size() * sizeof(float), ab.data(), "Verlet coefficients", bytes_);
       glUseProgram(program_->id);
       glUniform1i(program_->uniform("u_n"), static_cast<GLint>(n_));
+      energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define CSR 1\n"));
+      glUseProgram(energy_program_->id);
+      glUniform1i(energy_program_->uniform("u_n"), static_cast<GLint>(n_));
     }
+    glUseProgram(program_->id);
+    glUniform1i(program_->uniform("u_uniform_ab"), uniform_ab ? 1 : 0);
+    glUniform2f(program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
+                static_cast<float>(coefficients_.b[0]));
     u_write_ = program_->uniform("u_write");
     u_measure_ = program_->uniform("u_measure");
+    u_power_ = program_->uniform("u_power");
+    u_ab_ = program_->uniform("u_ab");
+    glUniform1i(u_power_, 0);
     check_gl("gl solver setup");
   }
 
@@ -292,10 +331,13 @@ class ComputeVerlet final : public GpuSpringSolver {
     glUniform1i(u_write_, 1);
     glUniform1i(u_measure_, 0);
     for (int it = 0; it < iterations; ++it) {
+      if (momentum_) momentum_schedule();
       dispatch();
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      if (momentum_) power_sum_ = sum_partials(power_, grid_.groups());  // a few bytes back, every step
       current_ ^= 1;  // the step wrote the new positions over the previous ones
     }
+    glUniform1i(u_power_, 0);
     check_gl("gl Verlet step");
   }
 
@@ -306,6 +348,12 @@ class ComputeVerlet final : public GpuSpringSolver {
     dispatch();
     const double largest = largest_partial(partial_, grid_.groups());
     return std::isfinite(largest) ? std::sqrt(largest) / scale_ : std::numeric_limits<double>::infinity();
+  }
+
+  double energy() override {
+    glUseProgram(energy_program_->id);
+    dispatch();
+    return sum_partials(partial_, grid_.groups());
   }
 
   std::vector<Vec3> positions() override {
@@ -320,7 +368,8 @@ class ComputeVerlet final : public GpuSpringSolver {
 
   void finish() override { glFinish(); }
   std::string backend() const override {
-    return structured_ ? (uniform_ ? "gl-structured-uniform" : "gl-structured") : "gl-general";
+    return std::string(momentum_ ? "momentum-" : "") +
+           (structured_ ? (uniform_ ? "gl-structured-uniform" : "gl-structured") : "gl-general");
   }
   double time_step() const override { return coefficients_.dt; }
   double mean_damping() const override { return coefficients_.mean_damping; }
@@ -331,6 +380,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, x_[current_].id);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, x_[current_ ^ 1].id);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, power_.id);
     if (structured_) {
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, stiffness_.id);
       glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, coef_.id);
@@ -342,7 +392,31 @@ class ComputeVerlet final : public GpuSpringSolver {
     glDispatchCompute(grid_.x, grid_.y, 1);
   }
 
+  // The momentum static solver's step (as the CPU's, springs/verlet_structured.cpp): Nesterov's
+  // momentum b = k / (k + 3) with the gradient restart of O'Donoghue and Candes 2015: when the
+  // last step moved against the force (sum F . v < 0, measured by that step's dispatch), the
+  // velocity is dropped (previous positions := current ones, a copy on the GPU).
+  void momentum_schedule() {
+    if (since_restart_ > 0 && power_sum_ < 0.0) {
+      glBindBuffer(GL_COPY_READ_BUFFER, x_[current_].id);
+      glBindBuffer(GL_COPY_WRITE_BUFFER, x_[current_ ^ 1].id);
+      glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
+                          static_cast<GLsizeiptr>(4 * n_ * sizeof(float)));
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      since_restart_ = 0;
+    }
+    const double b = static_cast<double>(since_restart_) / (since_restart_ + 3);
+    ++since_restart_;
+    glUniform2f(u_ab_, static_cast<float>(coefficients_.a[0]), static_cast<float>(b));
+    glUniform1i(u_power_, 1);
+  }
+
   springs::detail::VerletCoefficients coefficients_;
+  bool momentum_ = false;
+  int since_restart_ = 0;
+  double power_sum_ = 0.0;
+  Buffer power_;
+  GLint u_power_ = -1, u_ab_ = -1;
   long n_ = 0;
   Grid grid_;
   double scale_ = 1.0;
@@ -352,7 +426,7 @@ class ComputeVerlet final : public GpuSpringSolver {
   std::array<float, 13> k_uniform_{};
   Buffer x_[2], partial_, stiffness_, coef_, rows_;
   int current_ = 0;
-  std::unique_ptr<Program> program_;
+  std::unique_ptr<Program> program_, energy_program_;
   GLint u_write_ = -1, u_measure_ = -1;
   Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
@@ -425,6 +499,7 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
         compile_program({"spring_force.vert", "spring_force.geom", "spring_force.frag"}));
     integrate_program_ = std::make_unique<Program>(compile_program({"fullscreen.vert", "verlet_integrate.frag"}));
     residual_program_ = std::make_unique<Program>(compile_program({"force_residual.comp"}));
+    energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define TEXTURES 1\n"));
     glUseProgram(force_program_->id);
     glUniform1i(force_program_->uniform("u_positions"), 0);
     glUniform1i(force_program_->uniform("u_width"), width_);
@@ -442,8 +517,20 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     glUniform1i(residual_program_->uniform("u_positions"), 0);
     glUniform1i(residual_program_->uniform("u_width"), width_);
     glUniform1i(residual_program_->uniform("u_n"), static_cast<GLint>(n_));
+    glUseProgram(energy_program_->id);
+    glUniform1i(energy_program_->uniform("u_current"), 0);
+    glUniform1i(energy_program_->uniform("u_previous"), 1);
+    glUniform1i(energy_program_->uniform("u_coefficients"), 3);
+    glUniform1i(energy_program_->uniform("u_uniform"), uniform_ ? 1 : 0);
+    glUniform2f(energy_program_->uniform("u_ab"), static_cast<float>(coefficients_.a[0]),
+                static_cast<float>(coefficients_.b[0]));
+    glUniform1i(energy_program_->uniform("u_width"), width_);
+    glUniform1i(energy_program_->uniform("u_n"), static_cast<GLint>(n_));
+    glUniform1i(energy_program_->uniform("u_springs"), static_cast<GLint>(springs_));
+    energy_grid_ = grid_for(std::max(n_, springs_));
     grid_ = grid_for(n_);
-    storage(partial_, grid_.groups() * sizeof(float), nullptr, "residual partials", bytes_);
+    storage(partial_, std::max(grid_.groups(), energy_grid_.groups()) * sizeof(float), nullptr, "residual partials",
+            bytes_);
     glBindBuffer(GL_PIXEL_PACK_BUFFER, pbo_.id);
     glBufferData(GL_PIXEL_PACK_BUFFER, static_cast<GLsizeiptr>(texels * 4 * sizeof(float)), nullptr, GL_STREAM_READ);
     glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
@@ -484,6 +571,19 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     glDispatchCompute(grid_.x, grid_.y, 1);
     const double largest = largest_partial(partial_, grid_.groups());
     return std::isfinite(largest) ? std::sqrt(largest) / scale_ : std::numeric_limits<double>::infinity();
+  }
+
+  double energy() override {
+    glUseProgram(energy_program_->id);
+    bind_texture(0, positions_[current_]);
+    bind_texture(1, positions_[(current_ + 1) % 3]);
+    bind_texture(3, coef_);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, ends_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, params_.id);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, partial_.id);
+    glDispatchCompute(energy_grid_.x, energy_grid_.y, 1);
+    return sum_partials(partial_, energy_grid_.groups());
   }
 
   std::vector<Vec3> positions() override { return read(true); }
@@ -578,7 +678,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
   Buffer ends_, params_, partial_, pbo_;
   Grid grid_;
   int current_ = 0;  // previous = current + 1, next = current + 2 (mod 3)
-  std::unique_ptr<Program> force_program_, integrate_program_, residual_program_;
+  std::unique_ptr<Program> force_program_, integrate_program_, residual_program_, energy_program_;
+  Grid energy_grid_;
   Vec3 centre_ = Vec3::Zero();  // positions on the GPU are relative to it
   std::size_t bytes_ = 0;
 };
@@ -591,8 +692,10 @@ std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const
   options.validate();
   gpu_options.validate();
   springs::validate(system);
-  if (options.solver != springs::SolverKind::verlet)
-    throw OptionError("solver: the GPU backends run the Verlet solver only; use --backend cpu for --solver static");
+  const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
+  if (momentum && (options.static_method != springs::StaticMethod::momentum || gpu_options.backend != GpuBackend::gl))
+    throw OptionError("solver: on the GPU the static solver runs only as --static-method momentum on --backend gl; "
+                      "use --backend cpu for the others");
   context.make_current();
   if (gpu_options.backend == GpuBackend::gl_gs) {
     if (system.positions.empty()) throw OptionError("system: no point to settle");
@@ -604,7 +707,7 @@ std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const
     throw OptionError(
         "backend: structured needs a lattice whose springs are exactly its model-6/26 neighbours with "
         "stiffness 1 / rest length; use the general or auto path");
-  return std::make_unique<ComputeVerlet>(system, options, std::move(lattice), shape);
+  return std::make_unique<ComputeVerlet>(system, options, std::move(lattice), shape, momentum);
 }
 
 Readback read_positions(GpuSpringSolver& solver, bool pbo) {
@@ -634,22 +737,39 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   report.gpu_bytes = solver->gpu_bytes();
   double residual = solver->residual();
   report.residual_history.push_back(residual);
+  // Divergence as on the CPU: every energy_interval iterations the total energy comes back
+  // (a reduction on the GPU, a few kilobytes); NaN/Inf, or more than energy_growth_bound times
+  // the initial energy, stops the solve with the CPU's SolverError.
+  auto diverged = [&](int iteration, double energy, double initial) {
+    const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
+    springs::detail::throw_verlet_divergence(iteration, energy, initial,
+                                             momentum ? springs::detail::momentum_coefficients(system)
+                                                      : springs::detail::verlet_coefficients(system, options),
+                                             options);
+  };
+  const double initial_energy = std::max(solver->energy(), springs::detail::energy_floor(system));
+  if (!std::isfinite(initial_energy)) diverged(0, NAN, initial_energy);
   const bool run_all = options.tolerance == 0.0;
-  if (run_all) {
-    solver->run(options.max_iterations);
-    report.iterations = options.max_iterations;
-    residual = solver->residual();
-    report.residual_history.push_back(residual);
-  } else if (residual > options.tolerance) {
+  if (run_all || residual > options.tolerance) {
     double best = residual;
     int without_progress = 0;
+    int next_check = run_all ? options.max_iterations : gpu_options.check_interval;
+    int next_energy = options.energy_interval;
     while (report.iterations < options.max_iterations) {
-      const int block = std::min(gpu_options.check_interval, options.max_iterations - report.iterations);
-      solver->run(block);
-      report.iterations += block;
+      const int until = std::min({next_check, next_energy, options.max_iterations});
+      solver->run(until - report.iterations);
+      report.iterations = until;
+      if (report.iterations == next_energy) {
+        next_energy += options.energy_interval;
+        const double e = solver->energy();
+        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy) diverged(report.iterations, e, initial_energy);
+      }
+      if (report.iterations != next_check && report.iterations < options.max_iterations) continue;
+      next_check = report.iterations + gpu_options.check_interval;
       residual = solver->residual();
       report.residual_history.push_back(residual);
       if (!std::isfinite(residual)) break;
+      if (run_all) continue;
       if (residual <= options.tolerance) break;
       if (residual < 0.99 * best) {
         best = residual;
@@ -660,9 +780,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       }
     }
   }
-  if (!std::isfinite(residual))
-    springs::detail::throw_verlet_divergence(report.iterations, NAN, 0.0,
-                                             springs::detail::verlet_coefficients(system, options), options);
+  if (!std::isfinite(residual)) diverged(report.iterations, NAN, initial_energy);
   solver->finish();
   const auto t2 = clock_type::now();
   const Readback back = read_positions(*solver, gpu_options.pbo_readback);
@@ -686,9 +804,9 @@ BackendChoice choose_backend(const std::string& requested, springs::SolverKind s
   const bool verlet = solver == springs::SolverKind::verlet;
   if (requested == "cpu") return {"cpu", "requested (--backend cpu)"};
   if (requested == "gl" || requested == "gl-gs") {
-    if (!verlet)
-      throw OptionError("backend: " + requested + " runs the Verlet solver only; use --backend cpu or auto for "
-                        "--solver static");
+    if (!verlet && requested == "gl-gs")
+      throw OptionError("backend: gl-gs runs the Verlet solver only; use --backend gl (static method momentum), "
+                        "cpu or auto for --solver static");
     return {requested, "requested (--backend " + requested + ")"};
   }
   if (requested != "auto")

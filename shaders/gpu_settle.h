@@ -11,7 +11,11 @@
 ///   compressed-row kernel for any spring list (shaders/verlet_csr.comp); the choice follows
 ///   SettleOptions::backend (the CPU data path option) as on the CPU. Positions stay on the GPU;
 ///   the residual is a reduction on the GPU every GpuSettleOptions::check_interval iterations
-///   (a few bytes come back); one readback at the end.
+///   (a few bytes come back); one readback at the end. `gl` also runs the static solver's
+///   `momentum` method (springs/settle.h: accelerated gradient on the same kernels, unit masses,
+///   the CPU's step 1 / L, Nesterov's momentum with gradient restarts); its restart test needs
+///   the sum of F . v over the lattice after every step, a reduction on the GPU whose few bytes
+///   come back each step.
 /// - `gl-gs`: the thesis's own method: one GL_POINTS vertex per spring, the vertex shader
 ///   computes the force once, a geometry shader emits it at both end points' texels with
 ///   opposite signs, additive blending (GL_ONE, GL_ONE) accumulates it in an RGBA32F force
@@ -22,8 +26,11 @@
 /// scales with the lattice's extent, not with its distance from the origin: measured, a lattice
 /// 1000 units away agrees with the CPU to 1e-7 of its size instead of 1.6e-4).
 ///
-/// Divergence (a NaN/Inf force at a check) throws SolverError like the CPU solver; the energy
-/// bound of the CPU solver is not evaluated on the GPU.
+/// Divergence stops the settle with the CPU solver's SolverError (naming the likely cause and the
+/// option to change): every SettleOptions::energy_interval iterations the total energy is
+/// reduced on the GPU and read back (a few kilobytes); NaN/Inf, or more than
+/// energy_growth_bound times the initial energy, is divergence, as is a NaN/Inf force at a
+/// residual check.
 
 #include "shaders/gl_context.h"
 #include "springs/settle.h"
@@ -65,17 +72,24 @@ struct GpuSettleOptions {
 class GpuSpringSolver {
  public:
   virtual ~GpuSpringSolver() = default;
-  /// Runs `iterations` Verlet steps on the GPU without reading anything back.
+  /// Runs `iterations` Verlet steps on the GPU without reading anything back (static momentum:
+  /// a few bytes per step, the restart test).
   virtual void run(int iterations) = 0;
   /// Relative residual at the current positions (largest spring-force magnitude at a free point /
   /// springs::residual_force_scale, the CPU's measure): one force evaluation and a reduction on
   /// the GPU. +Inf when a force is NaN or Inf.
   virtual double residual() = 0;
+  /// Total energy at the current state, as the CPU Verlet solver measures it (kinetic
+  /// 1/2 m |x - x_prev|^2 / dt^2 at free points plus 1/2 D (|l| - |l0|)^2 per spring): one pass
+  /// and a reduction on the GPU (float32 per work group, summed in double). NaN when any term is
+  /// NaN or Inf.
+  virtual double energy() = 0;
   /// Current positions, #N (one readback).
   virtual std::vector<Vec3> positions() = 0;
   /// Waits until the GPU has finished every queued command (for timing).
   virtual void finish() = 0;
-  /// "gl-structured", "gl-structured-uniform", "gl-general" or "gl-gs".
+  /// "gl-structured", "gl-structured-uniform", "gl-general" or "gl-gs"; the static momentum
+  /// solver prefixes "momentum-".
   virtual std::string backend() const = 0;
   /// Verlet time step and mean damping coefficient used.
   virtual double time_step() const = 0;
@@ -87,8 +101,10 @@ class GpuSpringSolver {
 /// Builds a GPU Verlet solver for `system` (validated) on `context`'s device. `shape`, when given
 /// and the springs are exactly its model-6/26 neighbours with stiffness 1 / rest length, lets `gl`
 /// take the structured kernel (SettleOptions::backend = general forces the spring list,
-/// structured requires the lattice). Throws OptionError (bad options, solver other than
-/// verlet, structured without a lattice), GpuError (context, shaders, memory limits).
+/// structured requires the lattice). SolverKind::static_equilibrium runs StaticMethod::momentum
+/// on `gl` (the CPU's coefficients, float32). Throws OptionError (bad options, a static method
+/// other than momentum or the static solver on gl-gs, structured without a lattice), GpuError
+/// (context, shaders, memory limits).
 std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const springs::SpringSystem& system,
                                                  const springs::SettleOptions& options,
                                                  const GpuSettleOptions& gpu_options,
@@ -114,7 +130,7 @@ struct GpuSettleReport : springs::SettleReport {
 };
 
 /// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual
-/// on the GPU after each, stops at the tolerance or max_iterations (tolerance 0 runs exactly
+/// on the GPU after each (and the energy every energy_interval iterations, see above), stops at the tolerance or max_iterations (tolerance 0 runs exactly
 /// max_iterations and checks once at the end) or when the residual stops falling in float32
 /// (GpuSettleOptions::stall_checks; report.stalled), reads the positions back once and writes the
 /// free points into system.positions (fixed points keep their exact input bits). The residual
@@ -137,8 +153,9 @@ constexpr std::size_t kAutoGpuMinPoints = 125000;
 /// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
 /// `solver`: auto takes `gl` only for the Verlet solver, at least `min_gpu_points` points and a
 /// hardware device (`hardware_device`, e.g. hardware_gl_device_available(); only consulted
-/// after the first two tests pass), else `cpu`; the reason names the deciding fact. Throws OptionError for an unknown
-/// name or a GPU backend asked for the static solver.
+/// after the first two tests pass), else `cpu`; the reason names the deciding fact. `gl` may be
+/// asked for the static solver (its momentum method, checked by make_gpu_solver). Throws
+/// OptionError for an unknown name or gl-gs asked for the static solver.
 BackendChoice choose_backend(const std::string& requested, springs::SolverKind solver, std::size_t points,
                              bool hardware_device, std::size_t min_gpu_points = kAutoGpuMinPoints);
 

@@ -9,6 +9,8 @@
 // Positions are vec4: xyz and w = 1 for a fixed point, 0 for a free one.
 // With u_measure, each work group also writes the largest |F|^2 over its free points (+Inf for
 // NaN/Inf) to partial[group]: the residual reduction, finished on the host over a few values.
+// With u_power, each group also writes its sum of F . (x - x_prev) (the momentum static solver's
+// restart test, O'Donoghue and Candes 2015) to power_partial[group].
 layout(local_size_x = 256) in;
 
 layout(std430, binding = 0) readonly buffer Current { vec4 cur[]; };
@@ -16,6 +18,7 @@ layout(std430, binding = 1) buffer Previous { vec4 prev[]; };  // overwritten wi
 layout(std430, binding = 2) readonly buffer Stiffness { float stiffness[]; };  // [d * n + p], 0 = none
 layout(std430, binding = 3) readonly buffer Coefficients { vec2 coef[]; };     // (a, b) per point
 layout(std430, binding = 4) writeonly buffer Partial { float partial[]; };
+layout(std430, binding = 6) writeonly buffer Power { float power_partial[]; };
 
 uniform ivec3 u_size;
 uniform int u_n;
@@ -28,12 +31,16 @@ uniform vec2 u_ab;
 uniform bool u_write;     // false: measure only (residual at the current positions)
 uniform bool u_measure;
 
+uniform bool u_uniform_ab;  // one (a, b) for every point: u_ab (the momentum solver sets b each step)
+uniform bool u_power;       // write the group's sum of F . (x - x_prev) over free points to power_partial
+
 shared float s_max[256];
+shared float s_sum[256];
 
 void main() {
   const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   const int p = int(group * 256u + gl_LocalInvocationIndex);
-  float f2 = 0.0;
+  float f2 = 0.0, fv = 0.0;
   if (p < u_n) {
     const ivec3 ijk = ivec3(p % u_size.x, (p / u_size.x) % u_size.y, p / (u_size.x * u_size.y));
     const vec4 x4 = cur[p];
@@ -56,8 +63,9 @@ void main() {
       }
     }
     const bool fixed_point = x4.w != 0.0;
+    if (u_power && !fixed_point) fv = dot(f, x - prev[p].xyz);
     if (u_write) {
-      const vec2 ab = u_uniform ? u_ab : coef[p];
+      const vec2 ab = u_uniform_ab ? u_ab : coef[p];
       prev[p] = fixed_point ? x4 : vec4(x + ab.y * (x - prev[p].xyz) + ab.x * f, 0.0);
     }
     if (!fixed_point) {
@@ -74,5 +82,14 @@ void main() {
       barrier();
     }
     if (gl_LocalInvocationIndex == 0u) partial[group] = s_max[0];
+  }
+  if (u_power) {
+    s_sum[gl_LocalInvocationIndex] = fv;
+    barrier();
+    for (uint stride = 128u; stride > 0u; stride >>= 1) {
+      if (gl_LocalInvocationIndex < stride) s_sum[gl_LocalInvocationIndex] += s_sum[gl_LocalInvocationIndex + stride];
+      barrier();
+    }
+    if (gl_LocalInvocationIndex == 0u) power_partial[group] = s_sum[0];
   }
 }

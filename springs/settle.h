@@ -10,7 +10,8 @@
 ///   traversal order. Fixed points are written to both current and previous positions.
 /// - `static`: the equilibrium directly (fixed points given, zero net force elsewhere). Method
 ///   `momentum` (default): accelerated gradient descent on the spring energy run by the Verlet
-///   kernels (unit masses, step 1 / L from a Gershgorin bound L of the stiffness, Nesterov's
+///   kernels (unit masses, step 1 / L with L = 1.25 x a Lanczos estimate of the stiffness's largest
+///   eigenvalue, capped by its Gershgorin bound; Nesterov's
 ///   momentum k / (k + 3), restarted whenever the velocity opposes the force: O'Donoghue and
 ///   Candes 2015, "Adaptive restart for accelerated gradient schemes"). Method `newton`:
 ///   truncated Newton with matrix-free block-Jacobi preconditioned conjugate gradients and an

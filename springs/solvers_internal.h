@@ -32,9 +32,15 @@ SpringRows spring_rows(const SpringSystem& system);
 VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleOptions& options);
 
 /// Coefficients of the momentum (accelerated gradient) static solver: unit masses, step
-/// a = 1 / L with L the Gershgorin bound of the stiffness matrix (2 max_i sum_j k_ij), so a is
-/// the same for every point; b is set each step by the solver.
+/// a = 1 / L, the same for every point, with L = min(Gershgorin bound 2 max_i sum_j k_ij,
+/// 1.25 x largest_stiffness_eigenvalue); b is set each step by the solver.
 VerletCoefficients momentum_coefficients(const SpringSystem& system);
+
+/// Estimate (a lower bound, within a few per cent) of the largest eigenvalue of the spring
+/// energy's Hessian over the free points at the current positions, compressed springs counted
+/// without sideways stiffness: at most `steps` Lanczos steps from a fixed pseudo-random start
+/// (stiffness_bound.cpp). 0 when nothing is free.
+double largest_stiffness_eigenvalue(const SpringSystem& system, int steps);
 
 /// Throws SolverError for a Verlet run that produced NaN/Inf or too much energy.
 [[noreturn]] void throw_verlet_divergence(int iteration, double energy, double initial_energy,
@@ -52,6 +58,13 @@ std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,
                                                      const LatticeShape& shape, bool momentum = false);
+/// Whether structured solvers built from now on may use the AVX-512 spring loop (default true;
+/// tests switch it off to check the portable loop against it). Takes effect only where the
+/// processor has AVX-512.
+void set_structured_simd(bool enabled);
+/// True when a structured solver built now would use the AVX-512 spring loop.
+bool structured_simd_active();
+
 std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,

@@ -3,26 +3,47 @@
 // Data: struct of arrays (x, y, z; previous x, y, z), one stiffness array per half direction
 // (3 for model-6, 13 for model-26; stiffness 1 / rest length, so the rest length is 1 / k and
 // the force of a spring is (k - 1 / |l|) l), per-point coefficients a = dt^2 / m and
-// b = 1 - c dt / m, fixed flags. Neighbours are implicit: the spring from p in direction d ends
-// at p + offset[d] and the one from p - offset[d] ends at p.
+// b = 1 - c dt / m, fixed flags. Neighbours are implicit: the spring from p in half direction d
+// ends at p + offset[d].
 //
-// Each point gathers its spring forces from the current positions only (every spring is
-// evaluated from both ends) and its new position is written over its previous one: the forces
-// of a step are a function of the current array, so the result does not depend on traversal
-// order or thread count, exactly as accumulating them into a separate array (the general path)
-// would; fusing the two passes halves the memory traffic. Rows of interior points without a
-// fixed point run through a branch-free loop the compiler vectorises (compiled for AVX-512,
-// AVX2 and baseline x86-64, picked at run time); points on the boundary of the index box take
-// a checked scalar path. When every direction's springs share one stiffness and every point
-// the same coefficients, the rows read scalars instead of those arrays (detect_uniform). The
-// same kernels run the momentum static solver (per-step b, gradient restarts).
+// Every spring is evaluated once, from its first end, and its force pushed to both ends: +f to
+// the first, -f to the other. The half directions only point forward in the row order (row =
+// (j, k), rows in index order), to the same row, the next one and the three rows around it in
+// the next plane, so once a row's own springs are evaluated its force is complete: the row is
+// integrated at once (forces of the current positions, new positions written over the previous
+// ones, which nothing else reads). The pushes go to per-task accumulators of two planes (the
+// current and the next). Tasks take tiles: slabs of planes x strips of rows (so a task's data
+// stays in the second-level cache). A tile first evaluates the rows around it that push into
+// it (the plane before the slab, forward directions only; the rows on both sides of the strip
+// in each plane), in the order one pass over the whole lattice makes them, so every point's
+// force is summed in the same order whatever the tiles: the result does not depend on the
+// thread count or the grain (tested bitwise). Compared with gathering (each point evaluating
+// all its springs) this halves the inverse square roots, which bound the model-26 iteration.
+//
+// This path needs AVX-512: a row is one loop written with intrinsics (fused_row_avx512: own
+// springs summed in registers, integration in the same pass) and takes 1 / sqrt from
+// VRSQRT14PD refined by one third-order step (relative error below about 6e-13). Elsewhere (or
+// after set_structured_simd(false)) the portable gather path runs: every spring evaluated from
+// both ends with a square root and a division, vectorised by the compiler (sweep_gather). Both
+// are deterministic; they differ from each other by rounding. When
+// every direction's springs share one stiffness and every point the same coefficients, the rows
+// read scalars instead of those arrays (detect_uniform). The same kernels run the momentum
+// static solver (per-step b, gradient restarts).
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define FASCICLE_HAVE_AVX512_KERNEL 1
+#endif
+
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -37,10 +58,46 @@
 #endif
 
 namespace fascicle::springs::detail {
+
+namespace {
+std::atomic<bool> g_simd_enabled{true};
+}
+
+void set_structured_simd(bool enabled) { g_simd_enabled = enabled; }
+
+bool structured_simd_active() {
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+  return g_simd_enabled && __builtin_cpu_supports("avx512f");
+#else
+  return false;
+#endif
+}
+
 namespace {
 
 constexpr int kMaxDirections = 13;
 
+// Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
+// above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
+// anywhere survives the reduction. Integer max vectorises without -ffast-math.
+inline std::uint64_t bits_of(double v) {
+  std::uint64_t u;
+  std::memcpy(&u, &v, sizeof u);
+  return u;
+}
+inline double double_of(std::uint64_t u) {
+  double v;
+  std::memcpy(&v, &u, sizeof v);
+  return v;
+}
+
+// The portable path (processors without AVX-512, or set_structured_simd(false)): the gather
+// formulation. Each point sums its springs from both ends at the current positions and its new
+// position is written over its previous one; rows of interior points without a fixed point run
+// through a branch-free loop the compiler vectorises (compiled for AVX-512, AVX2 and baseline
+// x86-64, picked at run time); points on the boundary of the index box take a checked scalar
+// path. Every point's force is a function of the current positions alone, so the result does
+// not depend on the traversal order either.
 struct Kernel {
   const double* x;
   const double* y;
@@ -57,20 +114,6 @@ struct Kernel {
   double k_uniform[kMaxDirections];
   double a_uniform, b_uniform;
 };
-
-// Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
-// above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
-// anywhere survives the reduction. Integer max vectorises without -ffast-math.
-inline std::uint64_t bits_of(double v) {
-  std::uint64_t u;
-  std::memcpy(&u, &v, sizeof u);
-  return u;
-}
-inline double double_of(std::uint64_t u) {
-  double v;
-  std::memcpy(&v, &u, sizeof v);
-  return v;
-}
 
 // Adds the two springs of half direction d (towards p + off and from p - off) to f; their
 // stiffnesses are k[p] and k[p - off], or `uniform` for every spring when Uniform.
@@ -164,6 +207,187 @@ const RowFunction kRows[2][2][2][2] = {
     {{{force6, force26}, {force6, force26}}, {{force6_k, force26_k}, {force6_k, force26_k}}},
     {{{step6, step26}, {step6_ab, step26_ab}}, {{step6_k, step26_k}, {step6_kab, step26_kab}}}};
 
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+// GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked forms) and then
+// warn about it: a false positive.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// One row on the AVX-512 path, 8 points a vector. A point's own springs are summed in registers
+// (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
+// target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
+// f one lane up and carrying the last lane into the next vector. The force of a point is then
+// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once.
+// Without `integrate` (a slab's prologue) only the pushes are made.
+struct FusedRow {
+  const double* x[3];               // the row's positions (index i = point i of the row)
+  double* p[3];                     // the row's previous positions, overwritten with the new ones
+  const double* ring[3];            // the row's accumulated pushes
+  int directions;
+  bool valid[kMaxDirections];       // the direction's target row exists (and is used)
+  int dx[kMaxDirections];
+  long offset[kMaxDirections];      // index offset of the target point
+  const double* k[kMaxDirections];  // per-point stiffness at the source (null: ku)
+  double ku[kMaxDirections];
+  double* push[kMaxDirections][3];  // the target row's accumulators at point 0 (null: not pushed)
+  int along_x;                      // the direction (1, 0, 0), -1 when not valid
+  const double* a;                  // per-point a, b (null: au, bu)
+  const double* b;
+  double au, bu;
+  const std::uint8_t* fixed;
+  long nx;
+  bool integrate, write;
+};
+
+// 1 / sqrt(l2): VRSQRT14PD (relative error e0 below 2^-14), then one third-order step
+// y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2): relative
+// error below 5/16 e0^3, about 6e-13, plus rounding; five operations against seven for two
+// Newton steps. Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path).
+// Explicit FMAs; the library is compiled with -ffp-contract=off, so the same source gives the
+// same bits everywhere.
+__attribute__((target("avx512f"), always_inline)) inline __m512d inverse_sqrt(__m512d l2) {
+  // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
+  const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
+  const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
+  const __m512d g = _mm512_mul_pd(e, _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5)));
+  return _mm512_fmadd_pd(y0, g, y0);
+}
+
+// Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
+// ones are slower on some processors, measured on this one).
+__attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 m, const double* p) {
+  return m == 0xFF ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, p);
+}
+__attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m, double* p, __m512d v) {
+  if (m == 0xFF) _mm512_storeu_pd(p, v);
+  else _mm512_mask_storeu_pd(p, m, v);
+}
+
+template <int Directions>
+__attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedRow& given, double* power) {
+  // A local copy: vector stores may alias anything, so fields read through a reference would be
+  // reloaded after every store.
+  const FusedRow r = given;
+  const long nx = r.nx;
+  const double *x0 = r.x[0], *x1 = r.x[1], *x2 = r.x[2];
+  __m512d carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  __m512i largest = _mm512_setzero_si512();
+  __m512d fv = _mm512_setzero_pd();
+  for (long i = 0; i < nx; i += 8) {
+    const long left = nx - i;
+    const __mmask8 row_mask = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+    const __m512d sx = load8(row_mask, x0 + i);
+    const __m512d sy = load8(row_mask, x1 + i);
+    const __m512d sz = load8(row_mask, x2 + i);
+    __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+    __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+#pragma GCC unroll 13
+    for (int d = 0; d < Directions; ++d) {
+      if (!r.valid[d]) continue;
+      // Lanes whose target exists: i + dx in [0, nx).
+      __mmask8 m = row_mask;
+      if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
+      if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
+      const long q = i + r.offset[d];
+      const __m512d lx = _mm512_maskz_sub_pd(m, load8(m, x0 + q), sx);
+      const __m512d ly = _mm512_maskz_sub_pd(m, load8(m, x1 + q), sy);
+      const __m512d lz = _mm512_maskz_sub_pd(m, load8(m, x2 + q), sz);
+      const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
+      const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
+      const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
+      const __m512d l[3] = {lx, ly, lz};
+      if (d == r.along_x) {
+        for (int c = 0; c < 3; ++c) {
+          along[c] = _mm512_mul_pd(w, l[c]);
+          own[c] = _mm512_add_pd(own[c], along[c]);
+        }
+      } else {
+        // f = w l fused into the sums: +f to the own point, -f to the target
+        for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
+        if (r.push[d][0]) {
+          for (int c = 0; c < 3; ++c) {
+            double* target = r.push[d][c] + i + r.dx[d];
+            store8(m, target, _mm512_fnmadd_pd(w, l[c], load8(m, target)));
+          }
+        }
+      }
+    }
+    if (!r.integrate) continue;
+    // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
+    // lane coming in at lane 0.
+    __m512d force[3];
+    for (int c = 0; c < 3; ++c) {
+      const __m512d shifted = _mm512_castsi512_pd(
+          _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
+      carry[c] = along[c];
+      force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+    }
+    std::uint64_t packed = 0;  // the 8 fixed flags (fewer at the row's end)
+    std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= 8 ? 8 : left));
+    const __m128i fixed_bytes = _mm_cvtsi64_si128(static_cast<long long>(packed));
+    const __mmask8 is_fixed = _mm512_test_epi64_mask(_mm512_cvtepu8_epi64(fixed_bytes), _mm512_set1_epi64(0xFF));
+    const __mmask8 is_free = static_cast<__mmask8>(row_mask & ~is_fixed);
+    const __m512d f2 = _mm512_fmadd_pd(force[2], force[2],
+                                       _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
+    largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
+    const __m512d vx = _mm512_sub_pd(sx, load8(row_mask, r.p[0] + i));
+    const __m512d vy = _mm512_sub_pd(sy, load8(row_mask, r.p[1] + i));
+    const __m512d vz = _mm512_sub_pd(sz, load8(row_mask, r.p[2] + i));
+    const __m512d pv = _mm512_fmadd_pd(force[2], vz, _mm512_fmadd_pd(force[1], vy, _mm512_mul_pd(force[0], vx)));
+    fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
+    if (!r.write) continue;
+    const __m512d a = r.a ? load8(row_mask, r.a + i) : _mm512_set1_pd(r.au);
+    const __m512d b = r.b ? load8(row_mask, r.b + i) : _mm512_set1_pd(r.bu);
+    const __m512d v[3] = {vx, vy, vz}, s[3] = {sx, sy, sz};
+    for (int c = 0; c < 3; ++c) {
+      // fixed points: x_new = x; free: x + b v + a f
+      const __m512d moved = _mm512_fmadd_pd(a, force[c], _mm512_fmadd_pd(b, v[c], s[c]));
+      store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
+    }
+  }
+  alignas(64) double lanes[8];
+  _mm512_store_pd(lanes, fv);
+  double sum = 0.0;
+  for (double v : lanes) sum += v;
+  *power += sum;
+  alignas(64) std::uint64_t big[8];
+  _mm512_store_si512(reinterpret_cast<__m512i*>(big), largest);
+  std::uint64_t out = 0;
+  for (std::uint64_t v : big) out = v > out ? v : out;
+  return out;
+}
+
+std::uint64_t fused_row_avx512(const FusedRow& r, double* power) {
+  return r.directions == 3 ? fused_row_avx512_t<3>(r, power) : fused_row_avx512_t<kMaxDirections>(r, power);
+}
+#pragma GCC diagnostic pop
+#endif
+
+// Accumulators of one task: two planes of ny rows of nx forces per coordinate (plane k and
+// k + 1, alternating); a task touches only the rows of its strip.
+struct Ring {
+  std::vector<double> f[3];
+  long ny = 0, nx = 0;
+  void reset(long rows_per_plane, long row_length) {
+    if (ny != rows_per_plane || nx != row_length) {
+      ny = rows_per_plane;
+      nx = row_length;
+      for (auto& v : f) v.assign(static_cast<std::size_t>(2 * ny * nx), 0.0);
+    }
+  }
+  // Row r = j + ny k of the lattice.
+  double* row(int c, long r) { return f[c].data() + (((r / ny) & 1) * ny + r % ny) * nx; }
+  void zero(long r) {
+    for (int c = 0; c < 3; ++c) std::memset(row(c, r), 0, sizeof(double) * static_cast<std::size_t>(nx));
+  }
+};
+
+// A task's part of the lattice: planes [k0, k1) x rows [j0, j1) of each plane.
+struct Tile {
+  long k0, k1, j0, j1;
+  // Whether row (j, k) is pushed into by this task: inside the tile.
+  bool holds(long j, long k) const { return j >= j0 && j < j1 && k >= k0 && k < k1; }
+};
+
 class StructuredVerlet final : public SpringSolver {
  public:
   StructuredVerlet(const SpringSystem& system, const SettleOptions& options, const LatticeShape& shape,
@@ -186,13 +410,27 @@ class StructuredVerlet final : public SpringSolver {
     fixed_.resize(n_);
     for (long i = 0; i < n_; ++i) fixed_[i] = system.fixed[i] ? 1 : 0;
     rows_ = static_cast<long>(shape.ny) * shape.nz;
-    // At least ~8192 points a task: small lattices run as one task (TBB's overhead per task
-    // is larger than a small lattice's iteration); results do not depend on the grain.
-    grain_ = std::max(1L, 8192L / std::max(1, shape.nx));
+    // Tiles of whole rows: slabs of planes (a slab re-evaluates the forward springs of the plane
+    // before it) x strips of about 24 rows (a strip re-evaluates the pushes of the rows on both
+    // sides), about 4 slabs per thread against the shared machine's other work. Strips keep a
+    // task's positions and accumulators in the second-level cache. The result does not depend
+    // on the tiles.
+    const long threads = std::max(1, tbb::this_task_arena::max_concurrency());
+    slab_ = std::max(2L, (shape.nz + 4 * threads - 1) / (4 * threads));
+    strip_ = shape.ny;
+    if (shape.ny > 32) strip_ = (shape.ny + (shape.ny + 23) / 24 - 1) / ((shape.ny + 23) / 24);
+    // Small lattices run as one task: TBB's overhead per task is larger than their iteration.
+    if (n_ < 32768) {
+      slab_ = shape.nz;
+      strip_ = shape.ny;
+    }
+    slabs_ = (shape.nz + slab_ - 1) / slab_;
+    strips_ = (shape.ny + strip_ - 1) / strip_;
     row_largest_.assign(rows_, 0);
     row_power_.assign(rows_, 0.0);
-    // The vectorised loop has no fixed-point logic: a row with a fixed interior point takes the
-    // checked path (template lattices fix only the index box's boundary, so none does).
+    simd_ = structured_simd_active();
+    // The portable path's vectorised rows have no fixed-point logic: a row with a fixed interior
+    // point takes the checked path.
     row_has_fixed_.assign(rows_, 0);
     for (long row = 0; row < rows_; ++row)
       for (int i = 1; i + 1 < shape.nx; ++i)
@@ -233,23 +471,35 @@ class StructuredVerlet final : public SpringSolver {
 
   double energy() override {
     const double dt2 = coefficients_.dt * coefficients_.dt;
-    const int nx = shape_.nx;
+    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
+        const long base = row * nx, j = row % ny, k = row / ny;
+        const double* __restrict x = x_[0].data() + base;
+        const double* __restrict y = x_[1].data() + base;
+        const double* __restrict z = x_[2].data() + base;
+        const double* __restrict px = p_[0].data() + base;
+        const double* __restrict py = p_[1].data() + base;
+        const double* __restrict pz = p_[2].data() + base;
+        const double* __restrict mass = coefficients_.mass.data() + base;
         double e = 0.0;
-        for (int i = 0; i < nx; ++i) {
-          const long p = row * nx + i;
-          double v2 = 0.0;
-          for (int c = 0; c < 3; ++c) v2 += (x_[c][p] - p_[c][p]) * (x_[c][p] - p_[c][p]);
-          e += 0.5 * coefficients_.mass[p] * v2 / dt2;
-          for (int d = 0; d < directions_; ++d) {
-            const double k = stiffness_[d][p];
-            if (k == 0.0) continue;  // no spring: the neighbour is outside the lattice
-            const long q = p + offset_[d];
-            double l2 = 0.0;
-            for (int c = 0; c < 3; ++c) l2 += (x_[c][q] - x_[c][p]) * (x_[c][q] - x_[c][p]);
-            const double stretch = k * std::sqrt(l2) - 1.0;  // k (|l| - rest)
-            e += 0.5 * stretch * stretch / k;
+#pragma omp simd reduction(+ : e)
+        for (long i = 0; i < nx; ++i) {
+          const double vx = x[i] - px[i], vy = y[i] - py[i], vz = z[i] - pz[i];
+          e += 0.5 * mass[i] * (vx * vx + vy * vy + vz * vz) / dt2;
+        }
+        for (int d = 0; d < directions_; ++d) {
+          if (j + dir_[d][1] < 0 || j + dir_[d][1] >= ny || k + dir_[d][2] >= nz) continue;
+          const long i0 = dir_[d][0] < 0 ? 1 : 0, i1 = dir_[d][0] > 0 ? nx - 1 : nx;
+          const double* __restrict ks = stiffness_[d].data() + base;
+          const double* __restrict qx = x + offset_[d];
+          const double* __restrict qy = y + offset_[d];
+          const double* __restrict qz = z + offset_[d];
+#pragma omp simd reduction(+ : e)
+          for (long i = i0; i < i1; ++i) {
+            const double lx = qx[i] - x[i], ly = qy[i] - y[i], lz = qz[i] - z[i];
+            const double stretch = ks[i] * std::sqrt(lx * lx + ly * ly + lz * lz) - 1.0;  // k (|l| - rest)
+            e += 0.5 * stretch * stretch / ks[i];
           }
         }
         row_energy_[row] = e;
@@ -272,27 +522,6 @@ class StructuredVerlet final : public SpringSolver {
   double mean_damping() const override { return coefficients_.mean_damping; }
 
  private:
-  Kernel kernel() {
-    Kernel g;
-    g.x = x_[0].data();
-    g.y = x_[1].data();
-    g.z = x_[2].data();
-    g.px = p_[0].data();
-    g.py = p_[1].data();
-    g.pz = p_[2].data();
-    for (int d = 0; d < kMaxDirections; ++d) {
-      g.k[d] = d < directions_ ? stiffness_[d].data() : nullptr;
-      g.offset[d] = d < directions_ ? offset_[d] : 0;
-    }
-    g.a = coefficients_.a.data();
-    g.b = coefficients_.b.data();
-    g.fixed = fixed_.data();
-    for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
-    g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
-    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
-    return g;
-  }
-
   // A lattice is uniform when every direction's springs share one stiffness to 1e-12 relative
   // (regular lattices: the rest lengths differ only by rounding); a, b are uniform when every
   // point has the same. Interior rows then read scalars instead of 3 or 13 stiffness arrays and
@@ -322,6 +551,81 @@ class StructuredVerlet final : public SpringSolver {
     for (int d = 0; d < directions_; ++d)
       for (long i = 0; i < n_; ++i)
         if (stiffness_[d][i] != 0.0) stiffness_[d][i] = k_uniform_[d];
+  }
+
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+  // The AVX-512 row of `r`: pushes into the rows the tile holds; `integrate` false for the rows
+  // around the tile (only pushes; `forward_only`: only the directions into the next plane).
+  FusedRow fused_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
+    const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
+    const long j = r % ny, k = r / ny, base = r * nx;
+    FusedRow f;
+    for (int c = 0; c < 3; ++c) {
+      f.x[c] = x_[c].data() + base;
+      f.p[c] = p_[c].data() + base;
+      f.ring[c] = ring.row(c, r);
+    }
+    f.directions = directions_;
+    f.along_x = -1;
+    for (int d = 0; d < directions_; ++d) {
+      const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
+      const long target = r + dy + ny * dz;
+      f.valid[d] = j + dy >= 0 && j + dy < ny && k + dz < nz && nx > (dx != 0 ? 1 : 0) && (!forward_only || dz == 1);
+      f.dx[d] = dx;
+      f.offset[d] = offset_[d];
+      f.k[d] = uniform_k_ ? nullptr : stiffness_[d].data() + base;
+      f.ku[d] = k_uniform_[d];
+      const bool along_x = dx == 1 && dy == 0 && dz == 0;
+      if (along_x && f.valid[d] && integrate) f.along_x = d;
+      const bool push = f.valid[d] && !along_x && tile.holds(j + dy, k + dz);
+      for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.row(c, target) : nullptr;
+    }
+    f.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
+    f.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
+    f.au = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    f.bu = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
+    f.fixed = fixed_.data() + base;
+    f.nx = nx;
+    f.integrate = integrate;
+    f.write = write;
+    return f;
+  }
+#endif
+
+  // One row of the AVX-512 path. `integrate`: a row of the tile (own springs, then the row is
+  // complete and integrated); else a row around it (pushes into the tile only).
+  void process_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
+#ifdef FASCICLE_HAVE_AVX512_KERNEL
+    double power = 0.0;
+    const std::uint64_t largest = fused_row_avx512(fused_row(ring, r, tile, integrate, forward_only, write), &power);
+    if (integrate) {
+      row_largest_[r] = largest;
+      row_power_[r] = power;
+    }
+#else
+    (void)ring, (void)r, (void)tile, (void)integrate, (void)forward_only, (void)write;
+#endif
+  }
+
+  Kernel kernel() {
+    Kernel g;
+    g.x = x_[0].data();
+    g.y = x_[1].data();
+    g.z = x_[2].data();
+    g.px = p_[0].data();
+    g.py = p_[1].data();
+    g.pz = p_[2].data();
+    for (int d = 0; d < kMaxDirections; ++d) {
+      g.k[d] = d < directions_ ? stiffness_[d].data() : nullptr;
+      g.offset[d] = d < directions_ ? offset_[d] : 0;
+    }
+    g.a = coefficients_.a.data();
+    g.b = coefficients_.b.data();
+    g.fixed = fixed_.data();
+    for (int d = 0; d < kMaxDirections; ++d) g.k_uniform[d] = d < directions_ ? k_uniform_[d] : 0.0;
+    g.a_uniform = coefficients_.a.empty() ? 0.0 : coefficients_.a[0];
+    g.b_uniform = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
+    return g;
   }
 
   // Checked scalar path for a point on the boundary of the index box.
@@ -358,9 +662,8 @@ class StructuredVerlet final : public SpringSolver {
     return bits_of(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
   }
 
-  // One pass over the lattice: forces at the current positions, new positions into p_ when
-  // `write`. Returns the largest squared force at a free point (NaN when any is NaN).
-  double sweep(bool write) {
+  // The portable pass (gather).
+  double sweep_gather(bool write) {
     const Kernel g = kernel();
     const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     const bool model6 = directions_ == 3;
@@ -392,11 +695,58 @@ class StructuredVerlet final : public SpringSolver {
     return double_of(largest);
   }
 
+  // One pass over the lattice: forces at the current positions, new positions into p_ when
+  // `write`. Returns the largest squared force at a free point (NaN when any is NaN).
+  //
+  // Tasks take tiles: slabs of planes x strips of rows. Rows are visited in index order: for
+  // each plane of the slab, the row before the strip (its pushes into the strip), the strip's
+  // rows (own springs, pushes, integration), the row after it (its pushes into the strip); a
+  // slab starts with the same for the plane before it, directions into the next plane only.
+  // Every row that pushes into a point does so in the same order as in one pass over the whole
+  // lattice, so each point's force is summed in the same order whatever the tiles.
+  double sweep(bool write) {
+    if (!simd_) return sweep_gather(write);
+    const long ny = shape_.ny;
+    tbb::parallel_for(tbb::blocked_range<long>(0, slabs_ * strips_, 1), [&](const tbb::blocked_range<long>& range) {
+      Ring& ring = rings_.local();
+      ring.reset(ny, shape_.nx);
+      for (long task = range.begin(); task != range.end(); ++task) {
+        Tile tile;
+        tile.k0 = (task / strips_) * slab_;
+        tile.k1 = std::min<long>(shape_.nz, tile.k0 + slab_);
+        tile.j0 = (task % strips_) * strip_;
+        tile.j1 = std::min<long>(ny, tile.j0 + strip_);
+        auto plane = [&](long k, bool integrate, bool forward_only) {
+          if (tile.j0 > 0) process_row(ring, tile.j0 - 1 + ny * k, tile, false, forward_only, write);
+          for (long j = tile.j0; j < tile.j1; ++j) process_row(ring, j + ny * k, tile, integrate, forward_only, write);
+          if (tile.j1 < ny) process_row(ring, tile.j1 + ny * k, tile, false, forward_only, write);
+        };
+        for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * tile.k0);
+        if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
+        for (long k = tile.k0; k < tile.k1; ++k) {
+          if (k + 1 < tile.k1)
+            for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * (k + 1));
+          plane(k, true, false);
+        }
+      }
+    }, tbb::simple_partitioner());
+    std::uint64_t largest = 0;
+    power_ = 0.0;
+    for (long row = 0; row < rows_; ++row) {
+      largest = std::max(largest, row_largest_[row]);
+      power_ += row_power_[row];
+    }
+    return double_of(largest);
+  }
+
   SettleOptions options_;
   VerletCoefficients coefficients_;
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
-  long n_ = 0, rows_ = 0, grain_ = 1;
+  long n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
+  bool simd_ = false;  // AVX-512 path (structured_simd_active at construction), else gather
+  std::vector<char> row_has_fixed_;
+  tbb::enumerable_thread_specific<Ring> rings_;
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
   long offset_[kMaxDirections] = {};
@@ -410,7 +760,6 @@ class StructuredVerlet final : public SpringSolver {
   bool momentum_ = false;
   int since_restart_ = 0;
   int restarts_ = 0;
-  std::vector<char> row_has_fixed_;
   std::vector<double> row_energy_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
 };

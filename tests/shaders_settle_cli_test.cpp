@@ -87,14 +87,23 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
   const nlohmann::json automatic = read_json(dir.file("auto.json"));
   CHECK(automatic["compute_backend"] == "cpu");
   CHECK(automatic["backend_reason"].get<std::string>().find("below") != std::string::npos);
-  // Errors: unknown backend or path (18), a GPU backend for the static solver (18), no such device (18).
+  // Errors: unknown backend or path (18), a GPU backend for a static method other than momentum or
+  // gl-gs for the static solver (18), no such device (18).
   const std::string out = " -o " + dir.file("x.txt") + " 2>/dev/null";
   CHECK(test::run_command(base + " --backend vulkan" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(test::run_command(base + " --path diagonal" + out) == exit_code(ErrorCode::invalid_option));
-  CHECK(test::run_command(base + " --backend gl --solver static" + out) == exit_code(ErrorCode::invalid_option));
+  CHECK(test::run_command(base + " --backend gl --solver static --static-method newton" + out) ==
+        exit_code(ErrorCode::invalid_option));
+  CHECK(test::run_command(base + " --backend gl-gs --solver static" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(test::run_command(base + " --backend gl --gl-device 999" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(test::run_command(base + " --backend gl --gpu-check-interval 0" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(!std::filesystem::exists(dir.file("x.txt")));
+  // The static solver's momentum method runs on gl.
+  CHECK(test::run_command(base + " --backend gl --solver static -o " + dir.file("static.txt") +
+                          " --report " + dir.file("static.json")) == 0);
+  const nlohmann::json statics = read_json(dir.file("static.json"));
+  CHECK(statics["compute_backend"] == "gl");
+  CHECK(statics["solver"] == "static");
 }
 
 #else  // built without OpenGL/EGL/GLEW: the GPU backends are errors with exit code 15

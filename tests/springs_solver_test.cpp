@@ -4,8 +4,10 @@
 #include "geometry/errors.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
+#include "springs/solvers_internal.h"
 
 #include <catch2/catch.hpp>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <cstring>
@@ -55,9 +57,13 @@ SettleOptions verlet_options() {
 }  // namespace
 
 TEST_CASE("structured and general Verlet paths agree to 1e-9", "[springs][solver]") {
+  // Both spring loops of the structured path: AVX-512 (where the processor has it) and plain.
+  for (bool simd : {true, false}) {
+  detail::set_structured_simd(simd);
   for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
     for (TemplateKind kind : {TemplateKind::pennate, TemplateKind::curved}) {
-      INFO(template_name(kind) << " model-" << static_cast<int>(model));
+      INFO(template_name(kind) << " model-" << static_cast<int>(model) << " simd " << simd << " active "
+                               << detail::structured_simd_active());
       const Lattice lattice = moved_lattice(kind, 90, 11, model);
       const LatticeShape shape = shape_of(lattice);
       SettleOptions options = verlet_options();
@@ -82,6 +88,53 @@ TEST_CASE("structured and general Verlet paths agree to 1e-9", "[springs][solver
         CHECK(a.residual_history[i] == Approx(b.residual_history[i]).epsilon(1e-9).margin(1e-9));
     }
   }
+  }
+  detail::set_structured_simd(true);
+}
+
+TEST_CASE("the structured path gives bitwise the same result on 1, 2 or 3 threads", "[springs][solver]") {
+  // About 40 000 points: large enough to be cut into tiles (slabs of planes x strips of rows),
+  // whose sizes follow the thread count; every point's force must still be summed in the same
+  // order. A curved template (springs of many lengths: the per-point stiffness arrays) with a
+  // few interior points fixed; both spring loops; and the general path agrees to 1e-9.
+  for (bool simd : {true, false}) {
+    detail::set_structured_simd(simd);
+    for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+      Lattice lattice = moved_lattice(TemplateKind::curved, 1600, 25, model);
+      REQUIRE(lattice.point_count() > 32768);
+      std::mt19937 rng(3);
+      for (int i = 0; i < 40; ++i) lattice.system.fixed[rng() % lattice.system.fixed.size()] = 1;
+      const LatticeShape shape = shape_of(lattice);
+      std::vector<std::vector<Vec3>> results;
+      std::vector<double> residuals;
+      SettleOptions options = verlet_options();
+      options.tolerance = 0.0;
+      options.max_iterations = 40;
+      for (int threads : {1, 2, 3}) {
+        tbb::task_arena arena(threads);
+        arena.execute([&] {
+          options.backend = Backend::structured;
+          SpringSystem system = lattice.system;
+          const SettleReport report = settle(system, options, &shape);
+          CHECK(report.backend == "structured");
+          results.push_back(system.positions);
+          residuals.push_back(report.residual);
+        });
+      }
+      options.backend = Backend::general;
+      SpringSystem general = lattice.system;
+      settle(general, options, &shape);
+      INFO("model-" << static_cast<int>(model) << " simd " << simd << " active " << detail::structured_simd_active());
+      CHECK(max_distance(results[0], lattice.system.positions) > 1e-3);  // it moved
+      CHECK(max_distance(results[0], general.positions) <= 1e-9 * std::sqrt(3.0));
+      for (int t = 1; t < 3; ++t) {
+        CHECK(residuals[t] == residuals[0]);
+        for (std::size_t i = 0; i < results[0].size(); ++i)
+          REQUIRE(std::memcmp(results[0][i].data(), results[t][i].data(), 3 * sizeof(double)) == 0);
+      }
+    }
+  }
+  detail::set_structured_simd(true);
 }
 
 TEST_CASE("fixed points are bitwise unchanged by every solver", "[springs][solver]") {
