@@ -3,6 +3,7 @@
 #   make test   installs dependencies, builds, runs the whole test suite
 # Reliability (docs/RELIABILITY.md):
 #   make test-sanitize   the test suite built with ASan+UBSan in build-sanitize/ ([slow] excluded)
+#   make test-sanitize-geometry   the CGAL-free tests only under ASan+UBSan (minutes, for CI)
 #   make fuzz            libFuzzer targets for every reader in build-fuzz/ (needs clang),
 #                        FUZZ_SECONDS per target (default 600), FUZZ_JOBS targets at once
 #   make stress SEEDS=N  the defect-injection stress test with N seeds per muscle
@@ -11,7 +12,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 BUILD_TYPE ?= Release
 DEMO_DIR ?= demo-out
 
-.PHONY: all deps configure build test demo clean test-sanitize fuzz stress
+.PHONY: all deps configure build test demo clean test-sanitize test-sanitize-geometry fuzz stress
 
 SANITIZE_BUILD ?= build-sanitize
 FUZZ_BUILD ?= build-fuzz
@@ -42,6 +43,11 @@ test-sanitize: deps
 	@cmake -S . -B $(SANITIZE_BUILD) -DCMAKE_BUILD_TYPE=Release -DFASCICLE_STRICT=ON -DFASCICLE_SANITIZE=ON > /dev/null
 	@cmake --build $(SANITIZE_BUILD) -j $(JOBS)
 	@bash scripts/run-sanitized-tests.sh $(SANITIZE_BUILD) $(JOBS)
+
+# The CGAL-free tests (readers, writers, injector) under ASan+UBSan; tests that start the program
+# use the normal build's.
+test-sanitize-geometry: build
+	@bash scripts/sanitize-geometry-tests.sh $(SANITIZE_BUILD)-geometry $(BUILD) $(JOBS)
 
 # libFuzzer targets for every reader, built from geometry/ only (no CGAL) with clang.
 fuzz:

@@ -55,7 +55,7 @@ run_one() {
     -artifact_prefix="$artifacts" -print_final_stats=1 "$corpus" > "$build/logs/$t.log" 2>&1 || rc=$?
   end=$(date +%s)
   local execs corpus_files finds
-  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$build/logs/$t.log" | grep -o '[0-9]*$' || echo "?")
+  execs=$(grep -a -o 'stat::number_of_executed_units: *[0-9]*' "$build/logs/$t.log" | tail -n 1 | grep -o '[0-9]*$' || echo "?")
   corpus_files=$(find "$corpus" -type f | wc -l)
   finds=$(find "$artifacts" -type f | wc -l)
   echo "| $t | $execs | $((end - start)) | $corpus_files | $finds | $rc |" > "$build/logs/$t.row"

@@ -23,12 +23,24 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// tests/data/fuzz next to this source. __FILE__ is absolute, or (ccache with a base folder)
-/// relative to the folder the tests compile in, which is <build>/tests.
+/// tests/data/fuzz next to this source: from FASCICLE_SOURCE_DIR when the build defines it,
+/// else from __FILE__, which is absolute or (ccache with a base folder) relative to the folder
+/// the test compiled in: <build>/tests under CMake, or the current folder.
 fs::path fuzz_data_root() {
-  fs::path source(__FILE__);
-  if (source.is_relative()) source = fs::path(FASCICLE_PROGRAM).parent_path() / "tests" / source;
-  return (source.parent_path() / "data" / "fuzz").lexically_normal();
+  std::vector<fs::path> candidates;
+#ifdef FASCICLE_SOURCE_DIR
+  candidates.push_back(fs::path(FASCICLE_SOURCE_DIR) / "tests");
+#endif
+  const fs::path source(__FILE__);
+  if (source.is_absolute()) {
+    candidates.push_back(source.parent_path());
+  } else {
+    candidates.push_back((fs::path(FASCICLE_PROGRAM).parent_path() / "tests" / source).parent_path());
+    candidates.push_back(fs::current_path() / source.parent_path());
+  }
+  for (const fs::path& dir : candidates)
+    if (fs::is_directory(dir / "data" / "fuzz")) return (dir / "data" / "fuzz").lexically_normal();
+  return (candidates.front() / "data" / "fuzz").lexically_normal();
 }
 
 std::vector<std::string> files_of(const std::string& reader) {
