@@ -9,10 +9,14 @@
 #include "geometry/thesis_format.h"
 #include "test_common.h"
 
+#include <signal.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cctype>
 
 #include <cstdint>
 #include <cstring>
@@ -203,4 +207,48 @@ TEST_CASE("limits: 200 000 disjoint triangles read in bounded memory and repair 
   struct rusage usage {};
   ::getrusage(RUSAGE_CHILDREN, &usage);
   CHECK(static_cast<long long>(usage.ru_maxrss) * 1024 < (2LL << 30));
+}
+
+namespace {
+
+/// Processes (other than this one) whose command line mentions `needle`.
+std::vector<int> processes_mentioning(const std::string& needle) {
+  std::vector<int> pids;
+  for (const auto& entry : fs::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || !std::all_of(name.begin(), name.end(), ::isdigit)) continue;
+    std::ifstream in(entry.path() / "cmdline", std::ios::binary);
+    const std::string cmdline((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (cmdline.find(needle) != std::string::npos && std::stoi(name) != ::getpid()) pids.push_back(std::stoi(name));
+  }
+  return pids;
+}
+
+}  // namespace
+
+// Hidden until repair/alpha_wrap.cpp ends its worker with the parent (PR_SET_PDEATHSIG): today
+// a --time-limit that fires during an alpha wrap leaves the forked wrap worker running as an
+// orphan until its wrap completes. Run with: reliability_limits_test "[orphan]"
+TEST_CASE("limits: a time limit during alpha wrapping leaves no worker process behind", "[.][orphan][reliability]") {
+  test::TempDir dir;
+  constexpr int n = 60000;  // disjoint triangles: local repair cannot merge them, wrapping must
+  TriangleMesh mesh;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 base(static_cast<double>(i % 300) * 2.0, static_cast<double>(i / 300) * 2.0, 0.0);
+    const int k = static_cast<int>(mesh.positions.size());
+    mesh.positions.push_back(base);
+    mesh.positions.push_back(base + Vec3(1, 0, 0));
+    mesh.positions.push_back(base + Vec3(0, 1, 0.5));
+    mesh.triangles.push_back({k, k + 1, k + 2});
+  }
+  const std::string input = dir.file("pieces.ply");
+  write_triangle_mesh(input, mesh);
+  // A very fine alpha makes the wrap far longer than the 3 s limit.
+  const int code = test::run_command("'" + test::program() + "' --quiet --time-limit 3 repair '" + input + "' -o '" +
+                                     dir.file("out.off") + "' --components merge --wrap-alpha 0.00005 --wrap-seconds 600 2>/dev/null");
+  REQUIRE(code == exit_code(ErrorCode::time_limit));
+  ::usleep(500 * 1000);
+  const std::vector<int> left = processes_mentioning(input);
+  for (int pid : left) ::kill(pid, SIGKILL);  // do not leave them running after the test
+  CHECK(left.empty());
 }
