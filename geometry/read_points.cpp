@@ -10,6 +10,11 @@ namespace fascicle {
 
 std::vector<Vec3> read_points(const std::string& path, const ReadOptions& options) {
   const std::string data = detail::load_file(path, options);
+  return detail::read_points(path, data, options);
+}
+
+std::vector<Vec3> detail::read_points(const std::string& path, std::string_view data, const ReadOptions& options) {
+  options.validate();
   detail::ParseCursor in(path, data);
   in.skip_byte_order_mark();
   in.set_comment('#');

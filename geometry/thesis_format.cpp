@@ -42,6 +42,13 @@ int index_in_line(detail::ParseCursor& in, std::size_t point_count) {
 
 ThesisModel read_thesis_model(const std::string& path, const ReadOptions& options) {
   const std::string data = detail::load_file(path, options);
+  return detail::read_thesis(path, data, options);
+}
+
+namespace detail {
+
+ThesisModel read_thesis(const std::string& path, std::string_view data, const ReadOptions& options) {
+  options.validate();
   detail::ParseCursor in(path, data);
   in.skip_byte_order_mark();
   in.set_comment('#');
@@ -119,6 +126,8 @@ ThesisModel read_thesis_model(const std::string& path, const ReadOptions& option
   if (!in.at_end()) in.fail(ErrorCode::malformed, "unexpected content after the insertion area");
   return model;
 }
+
+}  // namespace detail
 
 void write_thesis_model(const std::string& path, const ThesisModel& model) {
   const auto n = static_cast<long long>(model.points.size());

@@ -9,6 +9,7 @@
 
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
+#include "geometry/thesis_format.h"
 
 #include <charconv>
 #include <cmath>
@@ -431,6 +432,12 @@ struct ObjData {
   std::vector<std::vector<int>> lines;
 };
 ObjData read_obj_data(const std::string& path, std::string_view data, const ReadOptions& options);
+
+/// The thesis text format (thesis_format.h) and landmark point files (read_points.h) from
+/// memory; read_thesis_model() and read_points() load the file and call these. The fuzz
+/// targets (fuzz/) call every reader through these in-memory entry points.
+ThesisModel read_thesis(const std::string& path, std::string_view data, const ReadOptions& options);
+std::vector<Vec3> read_points(const std::string& path, std::string_view data, const ReadOptions& options);
 
 /// Appends `value` with max_digits10 significant digits (shortest form that round-trips is not
 /// required; this is what iostream with precision max_digits10 prints).
