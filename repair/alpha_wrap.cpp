@@ -11,6 +11,8 @@
 
 #include <poll.h>
 #include <signal.h>
+#include <csignal>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -78,6 +80,7 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
                                                         double seconds) {
   int fds[2];
   if (::pipe(fds) != 0) return alpha_wrap(soup, alpha, offset);  // no pipe: wrap unbounded
+  const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {
     ::close(fds[0]);
@@ -86,6 +89,10 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
   }
   if (pid == 0) {
     // Child: wrap, send counts then raw arrays, exit without running the parent's destructors.
+    // It dies with its parent (a --time-limit exit or a kill must not leave it running on); the
+    // parent may already be gone before the request took effect, hence the second test.
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != parent) ::_exit(1);
     ::close(fds[0]);
     int status = 1;
     try {

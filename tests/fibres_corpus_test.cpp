@@ -1,0 +1,49 @@
+// Every corpus muscle through `fascicle batch` (one decompose process per muscle, default
+// options): what the decomposition guarantees today on real data, so that a change that breaks it
+// is caught. The figures per muscle are in docs/BENCHMARKS.md ("Decompose"); the criteria the
+// method does not meet yet on most muscles (inverted cells, coverage) are measured there, not here.
+#include "tests/test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+using namespace fascicle;
+
+TEST_CASE("corpus muscles decompose with every fibre inside and ends on their areas", "[fibres][corpus][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  test::TempDir dir;
+  const std::string muscles = test::data_dir() + "/muscles";
+  const int code = test::run_command(test::program() + " -q batch " + muscles + " -o " + dir.path().string() +
+                                     " --jobs 2 --keep-failed 2>/dev/null");
+  CHECK((code == 0 || code == 19));
+  int reports = 0, passed = 0;
+  std::set<std::string> refused;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir.path())) {
+    const std::string path = entry.path().string();
+    if (path.size() < 12 || path.compare(path.size() - 12, 12, ".report.json") != 0) continue;
+    ++reports;
+    std::ifstream in(path);
+    const nlohmann::json r = nlohmann::json::parse(in);
+    INFO(path);
+    if (!r.contains("quality")) {
+      // Refused before any fibre is made: only the sphere map's two known failures (issue 3).
+      CHECK(r.value("error_code", std::string()) == "solver_diverged");
+      refused.insert(entry.path().filename().string());
+      continue;
+    }
+    const auto& q = r["quality"];
+    CHECK(q["fibres"].get<long>() == 100);
+    CHECK(q["inside_fraction"].get<double>() == 1.0);
+    CHECK(q["attachment"]["origin_max"].get<double>() <= 0.02);
+    CHECK(q["attachment"]["insertion_max"].get<double>() <= 0.02);
+    passed += r["status"] == "ok";
+  }
+  CHECK(reports == 47);
+  CHECK(refused == std::set<std::string>{"LHDL_R_M090_Psoas_smooth.415.report.json", "left_biceps_brachii.report.json"});
+  // A floor, not the goal: the muscles that pass every criterion today must keep passing.
+  CHECK(passed >= 4);
+}
