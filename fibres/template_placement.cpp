@@ -523,11 +523,18 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   double so = 1.0, si = 1.0;
   place(so, si);
   for (int round = 0; round < options.face_shrink_rounds && lattice.nz > 2; ++round) {
-    const bool origin_deep = face_depth_ratio(0, 1) > options.max_face_depth;
-    const bool insertion_deep = face_depth_ratio(lattice.nz - 1, lattice.nz - 2) > options.max_face_depth;
+    // A face's depth grows about with the square of its radius on a rounded end: aim at 0.6 of
+    // the allowed depth from the measured ratio, shrinking by at least 0.8 and at most 0.3 a round.
+    const double origin_ratio = face_depth_ratio(0, 1);
+    const double insertion_ratio = face_depth_ratio(lattice.nz - 1, lattice.nz - 2);
+    const auto factor = [&](double ratio) {
+      return std::clamp(std::sqrt(0.6 * options.max_face_depth / ratio), 0.3, 0.8);
+    };
+    const bool origin_deep = origin_ratio > options.max_face_depth;
+    const bool insertion_deep = insertion_ratio > options.max_face_depth;
     if (!origin_deep && !insertion_deep) break;
-    if (origin_deep) so *= 0.8;
-    if (insertion_deep) si *= 0.8;
+    if (origin_deep) so *= factor(origin_ratio);
+    if (insertion_deep) si *= factor(insertion_ratio);
     place(so, si);
   }
   report.origin_face_scale = so;

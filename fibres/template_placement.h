@@ -57,9 +57,10 @@ struct PlacementOptions {
   /// muscle's end axis) as a share of the distance from its shallowest point to the first lateral
   /// ring (default 0.1, measured on the sample muscle: 0.5 leaves 90 of 1134 cells inverted, 0.1
   /// leaves 17, 0.05 leaves 8). A face wrapped round a rounded end deeper than the first ring of fibre
-  /// points would fold the first layer of cells; the face is shrunk (by 0.8 per round) until it fits.
+  /// points would fold the first layer of cells; the face is shrunk (by 0.3 to 0.8 a round, from
+  /// the measured depth) until it fits.
   double max_face_depth = 0.1;
-  /// Largest number of shrinking rounds (default 12; 0.8^12 = 0.07 of the region's radius).
+  /// Largest number of shrinking rounds (default 12).
   int face_shrink_rounds = 12;
   /// Lateral rings of the lattice go to even steps of length along the muscle (area per level
   /// circumference) when true, to even steps of surface area when false (default true: keeps the

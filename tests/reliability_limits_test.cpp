@@ -226,9 +226,8 @@ std::vector<int> processes_mentioning(const std::string& needle) {
 
 }  // namespace
 
-// Hidden until repair/alpha_wrap.cpp ends its worker with the parent (PR_SET_PDEATHSIG): today
-// a --time-limit that fires during an alpha wrap leaves the forked wrap worker running as an
-// orphan until its wrap completes. Run with: reliability_limits_test "[orphan]"
+// The forked alpha-wrap worker dies with its parent (PR_SET_PDEATHSIG in repair/alpha_wrap.cpp):
+// a --time-limit that fires during a wrap must not leave it running on as an orphan.
 TEST_CASE("limits: a time limit during alpha wrapping leaves no worker process behind", "[orphan][reliability]") {
   test::TempDir dir;
   constexpr int n = 60000;  // disjoint triangles: local repair cannot merge them, wrapping must
