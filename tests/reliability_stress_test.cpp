@@ -6,7 +6,7 @@
 //
 // `make test` runs one fixed seed per muscle; `make stress SEEDS=N` runs N seeds per muscle
 // (FASCICLE_STRESS_SEEDS=N, FASCICLE_STRESS_JOBS=J processes at a time, default 2).
-// Stages: stress_stages() below; a new stage (decompose) is one more entry there.
+// Stages: stress_stages() below: repair, then decompose of the repaired mesh.
 
 #include "geometry/errors.h"
 #include "geometry/inject_defects.h"
@@ -65,7 +65,6 @@ struct Stage {
 std::string quoted(const std::string& s) { return "'" + s + "'"; }
 
 /// The stages every broken mesh goes through, in order; each takes the previous one's output.
-/// To add decompose: one more Stage here (its arguments, refusal codes and output check).
 std::vector<Stage> stress_stages() {
   std::vector<Stage> stages;
   stages.push_back(Stage{
@@ -92,6 +91,34 @@ std::vector<Stage> stress_stages() {
           if (!verdict.empty()) return "output fails verification: " + verdict;
         } catch (const Error& e) {
           return std::string("output does not read back: ") + e.what();
+        }
+        return "";
+      }});
+  stages.push_back(Stage{
+      "decompose", "vtk",
+      [](const std::string& in, const std::string& out, const std::string& report) {
+        return "decompose " + quoted(in) + " -o " + quoted(out) + " --report " + quoted(report);
+      },
+      // Refusals: a sphere map that is not a bijection (solver), or fibres that fail the check
+      // (quality: then no fibre file is written).
+      {exit_code(ErrorCode::solver_diverged), exit_code(ErrorCode::quality), exit_code(ErrorCode::topology)},
+      [](const std::string& out, const std::string& report) -> std::string {
+        nlohmann::json j;
+        try {
+          j = nlohmann::json::parse(read_text(report));
+        } catch (const std::exception& e) {
+          return std::string("report is not JSON: ") + e.what();
+        }
+        if (j.value("status", "") != "ok") return "report status '" + j.value("status", "") + "'";
+        if (j["quality"]["inside_fraction"] != 1.0) return "a fibre point is outside";
+        try {
+          const Polylines fibres = read_polylines(out);
+          if (fibres.lines.size() != 100) return "fibre count " + std::to_string(fibres.lines.size());
+          for (const auto& line : fibres.lines)
+            for (const Vec3& p : line)
+              if (!p.allFinite()) return "a fibre point is not finite";
+        } catch (const Error& e) {
+          return std::string("fibres do not read back: ") + e.what();
         }
         return "";
       }});
