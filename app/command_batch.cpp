@@ -12,7 +12,10 @@
 #include <spdlog/spdlog.h>
 
 #include <unistd.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
+
+#include <csignal>
 
 #include <algorithm>
 #include <atomic>
@@ -127,6 +130,9 @@ int run_process(const std::vector<std::string>& argv, const std::string& log) {
   const pid_t pid = fork();
   if (pid < 0) return -1;
   if (pid == 0) {
+    // A killed batch takes its decompose processes with it (their outputs are atomic: a killed
+    // one leaves at most a temporary file, removed when the batch is resumed).
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     FILE* f = std::fopen(log.c_str(), "w");
     if (f) {
       dup2(fileno(f), 1);
@@ -194,11 +200,41 @@ std::string self_path() {
   return p.string();
 }
 
+// True when process `pid` exists and is not a zombie (a killed process its parent has not reaped
+// yet is gone for our purpose).
+bool process_alive(pid_t pid) {
+  if (::kill(pid, 0) != 0 && errno == ESRCH) return false;
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return true;  // no /proc: trust kill()
+  const auto close = line.rfind(')');
+  return close == std::string::npos || close + 2 >= line.size() || line[close + 2] != 'Z';
+}
+
+// Temporary files of a killed run (".NAME.tmp.PID...", geometry/atomic_file.cpp) whose process is
+// gone; removed so that a resumed batch leaves only complete outputs. Returns how many.
+int remove_stale_temporaries(const std::string& folder) {
+  int removed = 0;
+  std::error_code ec;
+  if (!fs::exists(folder, ec)) return 0;
+  for (const auto& entry : fs::recursive_directory_iterator(folder, ec)) {
+    const std::string name = entry.path().filename().string();
+    const auto at = name.find(".tmp.");
+    if (name.empty() || name[0] != '.' || at == std::string::npos || !entry.is_regular_file()) continue;
+    const long pid = std::strtol(name.c_str() + at + 5, nullptr, 10);
+    if (pid > 0 && process_alive(static_cast<pid_t>(pid))) continue;
+    if (fs::remove(entry.path(), ec)) ++removed;
+  }
+  return removed;
+}
+
 void run_batch(const BatchArgs& args) {
   if (args.jobs < 1 || args.jobs > 256) throw OptionError("jobs: must be in 1..256, got " + std::to_string(args.jobs));
   if (!(args.time_limit >= 0.0)) throw OptionError("time-limit: must be >= 0");
   const std::vector<Muscle> muscles = list_muscles(args);
   fs::create_directories(args.output);
+  if (const int stale = remove_stale_temporaries(args.output); stale > 0)
+    spdlog::info("batch: removed {} temporary file(s) left by an interrupted run", stale);
   const std::string program = self_path();
   std::vector<Outcome> outcomes(muscles.size());
   std::atomic<std::size_t> next{0};

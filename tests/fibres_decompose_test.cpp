@@ -17,6 +17,8 @@
 #include <fstream>
 #include <random>
 
+#include <unistd.h>
+
 using namespace fascicle;
 
 namespace {
@@ -215,4 +217,39 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   std::ofstream(list) << "# muscles\n" << (in / "capsule.off").string() << "\n" << (in / "nope.off").string() << "\n";
   CHECK(test::run_command(test::program() + " -q batch " + list + " -o " + (dir.path() / "out2").string() +
                           " 2>/dev/null") == 3);
+}
+
+TEST_CASE("fascicle batch killed with SIGKILL leaves only complete outputs and resumes", "[fibres][cli][batch]") {
+  test::TempDir dir;
+  const std::filesystem::path in = dir.path() / "in";
+  std::filesystem::create_directories(in);
+  for (int i = 0; i < 8; ++i) write_triangle_mesh((in / ("m" + std::to_string(i) + ".off")).string(), capsule());
+  const std::filesystem::path out = dir.path() / "out";
+  const std::string cmd = test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
+  // Start the batch, kill it hard part-way (wherever the kill lands, the checks below hold).
+  const std::string pid_file = (dir.path() / "pid").string();
+  REQUIRE(test::run_command(cmd + " > /dev/null 2>&1 & echo $! > " + pid_file) == 0);
+  ::usleep(700 * 1000);
+  std::string pid;
+  std::ifstream(pid_file) >> pid;
+  REQUIRE_FALSE(pid.empty());
+  test::run_command("kill -9 " + pid + " 2>/dev/null");
+  ::usleep(500 * 1000);  // its decompose processes die with it
+  auto fibre_files = [&] {
+    std::vector<std::filesystem::path> files;
+    if (std::filesystem::exists(out))
+      for (const auto& e : std::filesystem::directory_iterator(out))
+        if (e.path().extension() == ".vtk") files.push_back(e.path());
+    return files;
+  };
+  for (const auto& f : fibre_files()) CHECK(read_polylines(f.string()).lines.size() == 100);  // complete
+  // Resume: the rest is done, what was done stays, no temporary file remains.
+  const int code = test::run_command(cmd + " 2>/dev/null");
+  CHECK((code == 0 || code == 19));
+  CHECK(fibre_files().size() == 8);
+  for (const auto& f : fibre_files()) CHECK(read_polylines(f.string()).lines.size() == 100);
+  for (const auto& e : std::filesystem::recursive_directory_iterator(out)) {
+    INFO(e.path().string());
+    CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
+  }
 }
