@@ -14,10 +14,13 @@
 ///     equilibrium (one sparse linear solve; a discrete harmonic map of the surface positions),
 ///     then the springs' rest lengths taken from the template, stretched by the best-fitting
 ///     linear map of template onto that first equilibrium, and the chosen solver run from it;
-///  6. containment: a free point the settle leaves outside the muscle (exact inside test) is
-///     moved to the closest surface point, `contact_depth` of its local spacing further in,
-///     fixed there, and the settle repeated (at most `contact_rounds` times) - a contact
-///     constraint of the solve, reported, never a silent clip of the output;
+///  6. containment: a free point the settle leaves outside the muscle (exact inside test) gets a
+///     zero-length spring to an anchor at the closest surface point, `contact_depth` of its local
+///     spacing further in (4x stiffer each round, `soft_contact_rounds` rounds), then is fixed at
+///     its anchor, the settle repeated each time (at most `contact_rounds` rounds) - a contact
+///     constraint of the solve, reported, never a silent clip of the output; after the first
+///     settle the fibre ends are cast onto the surface under the layer next to them and the
+///     interior settled again (`cast_rounds` times), with the same containment;
 ///  7. optional smoothing along the fibres (free points only);
 ///  8. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
