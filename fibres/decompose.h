@@ -21,12 +21,17 @@
 ///     constraint of the solve, reported, never a silent clip of the output; after the first
 ///     settle the fibre ends are cast onto the surface under the layer next to them and the
 ///     interior settled again (`cast_rounds` times), with the same containment;
-///  7. optional smoothing along the fibres (free points only);
-///  8. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+///  7. untangling (fibres/untangle.h): the cells the settle left inverted are unfolded by a
+///     barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally first,
+///     with the fibre ends held and then free (soft pins), with soft containment; see
+///     docs/decompose.md step 8;
+///  8. optional smoothing along the fibres (free points only);
+///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances.
 #include "fibres/fibre_check.h"
 #include "fibres/template_placement.h"
+#include "fibres/untangle.h"
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
 #include "morph/sphere_map.h"
@@ -78,6 +83,13 @@ struct DecomposeOptions {
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
                                 ///< spacings, (0, 1) (default 0.3)
+  /// Unfold the cells the settle leaves inverted (step 6c, fibres/untangle.h) (default true).
+  bool untangle_cells = true;
+  UntangleOptions untangle;     ///< the untangling (defaults: fibres/untangle.h)
+  /// L-BFGS iterations the whole untangling stage may spend, all rounds together, >= 0 (default
+  /// 12000: a lattice that cannot be unfolded costs seconds, not minutes; an iteration count,
+  /// not a time, so that the result does not depend on the machine).
+  int untangle_iterations = 12000;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
@@ -97,7 +109,7 @@ struct Landmarks {
 struct DecomposeReport {
   std::string status;       ///< "ok" or "failed" (the quality check failed)
   std::string failure;      ///< why, when failed
-  nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, smoothing;
+  nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
   CheckReport quality;
   std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
   double repair_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,

@@ -1,7 +1,7 @@
 // Every corpus muscle through `fascicle batch` (one decompose process per muscle, default
 // options): what the decomposition guarantees today on real data, so that a change that breaks it
 // is caught. The figures per muscle are in docs/BENCHMARKS.md ("Decompose"); the criteria the
-// method does not meet yet on most muscles (inverted cells, coverage) are measured there, not here.
+// method does not meet yet on every muscle (inverted cells, coverage) have floors here.
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
@@ -20,7 +20,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   const int code = test::run_command(test::program() + " -q batch " + muscles + " -o " + dir.path().string() +
                                      " --jobs 2 --keep-failed 2>/dev/null");
   CHECK((code == 0 || code == 19));
-  int reports = 0, passed = 0;
+  int reports = 0, passed = 0, unfolded = 0;
   std::set<std::string> refused;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir.path())) {
     const std::string path = entry.path().string();
@@ -41,9 +41,14 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     CHECK(q["attachment"]["origin_max"].get<double>() <= 0.02);
     CHECK(q["attachment"]["insertion_max"].get<double>() <= 0.02);
     passed += r["status"] == "ok";
+    unfolded += q["inverted_cells"].get<long>() == 0;
   }
   CHECK(reports == 47);
-  CHECK(refused == std::set<std::string>{"LHDL_R_M090_Psoas_smooth.415.report.json", "left_biceps_brachii.report.json"});
-  // A floor, not the goal: the muscles that pass every criterion today must keep passing.
-  CHECK(passed >= 4);
+  // At most the sphere map's two known failures (issue 3) are refused.
+  const std::set<std::string> known{"LHDL_R_M090_Psoas_smooth.415.report.json", "left_biceps_brachii.report.json"};
+  for (const std::string& name : refused) CHECK(known.count(name) == 1);
+  // Floors, not the goal (every muscle): on 2026-11-21 with the untangling, 19 muscles passed
+  // every criterion and 39 had no inverted cell (docs/BENCHMARKS.md, "Decompose").
+  CHECK(passed >= 17);
+  CHECK(unfolded >= 37);
 }

@@ -1,0 +1,320 @@
+#include "fibres/untangle.h"
+
+#include "geometry/errors.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <string>
+
+namespace fascicle {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+Eigen::Matrix3d edge_matrix(const std::vector<Vec3>& x, const std::array<int, 4>& v) {
+  Eigen::Matrix3d d;
+  const Vec3& p0 = x[static_cast<std::size_t>(v[0])];
+  for (int c = 0; c < 3; ++c) d.col(c) = x[static_cast<std::size_t>(v[static_cast<std::size_t>(c) + 1])] - p0;
+  return d;
+}
+
+// Cofactor matrix: d det(J) / dJ.
+Eigen::Matrix3d cofactor(const Eigen::Matrix3d& j) {
+  Eigen::Matrix3d c;
+  c.col(0) = j.col(1).cross(j.col(2));
+  c.col(1) = j.col(2).cross(j.col(0));
+  c.col(2) = j.col(0).cross(j.col(1));
+  return c;
+}
+
+double chi(double d, double eps) { return 0.5 * (d + std::sqrt(eps * eps + d * d)); }
+double chi_derivative(double d, double eps) { return 0.5 * (1.0 + d / std::sqrt(eps * eps + d * d)); }
+
+// The problem in the free coordinates.
+class Energy {
+ public:
+  Energy(std::vector<Vec3>& positions, const std::vector<char>& fixed, const std::vector<UntangleTet>& tets,
+         double lambda, const std::vector<UntangleAnchor>& anchors)
+      : positions_(positions), tets_(tets), anchors_(anchors), lambda_(lambda), slot_(positions.size(), -1) {
+    for (std::size_t q = 0; q < positions.size(); ++q)
+      if (!fixed[q]) {
+        slot_[q] = static_cast<int>(free_.size());
+        free_.push_back(static_cast<int>(q));
+      }
+    for (std::size_t t = 0; t < tets.size(); ++t) {
+      bool any = false;
+      for (int v : tets[t].v) any = any || slot_[static_cast<std::size_t>(v)] >= 0;
+      if (any) active_.push_back(static_cast<int>(t));
+    }
+  }
+  std::size_t free_count() const { return free_.size(); }
+  Eigen::VectorXd get() const {
+    Eigen::VectorXd x(3 * static_cast<Eigen::Index>(free_.size()));
+    for (std::size_t f = 0; f < free_.size(); ++f) x.segment<3>(3 * static_cast<Eigen::Index>(f)) = positions_[static_cast<std::size_t>(free_[f])];
+    return x;
+  }
+  void set(const Eigen::VectorXd& x) {
+    for (std::size_t f = 0; f < free_.size(); ++f) positions_[static_cast<std::size_t>(free_[f])] = x.segment<3>(3 * static_cast<Eigen::Index>(f));
+  }
+  // Energy at x (with eps), gradient into g when given.
+  double evaluate(const Eigen::VectorXd& x, double eps, Eigen::VectorXd* g) {
+    set(x);
+    ++evaluations;
+    if (g) g->setZero(x.size());
+    double e = 0.0;
+    for (int t : active_) {
+      const UntangleTet& tet = tets_[static_cast<std::size_t>(t)];
+      const Eigen::Matrix3d j = edge_matrix(positions_, tet.v) * tet.reference_inverse;
+      const double det = j.determinant();
+      const double eps_t = std::max(eps, tet.eps_floor);
+      const double c = chi(det, eps_t);
+      const double c23 = std::cbrt(c * c);
+      const double frob = j.squaredNorm();
+      const double shape = frob / c23;
+      const double volume = (det * det + 1.0) / c;
+      e += tet.weight * ((1.0 - lambda_) * shape + lambda_ * volume);
+      if (!g) continue;
+      const double dc = chi_derivative(det, eps_t);
+      const Eigen::Matrix3d cof = cofactor(j);
+      // d shape / dJ = 2 J / c^(2/3) - (2/3) frob c^(-5/3) dc cof
+      // d volume / dJ = (2 det / c - (det^2 + 1) dc / c^2) cof
+      const Eigen::Matrix3d dj = (1.0 - lambda_) * (2.0 / c23 * j - (2.0 / 3.0) * shape / c * dc * cof) +
+                                 lambda_ * (2.0 * det / c - (det * det + 1.0) * dc / (c * c)) * cof;
+      const Eigen::Matrix3d dd = tet.weight * dj * tet.reference_inverse.transpose();
+      Vec3 g0 = Vec3::Zero();
+      for (int col = 0; col < 3; ++col) {
+        const int s = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])];
+        if (s >= 0) g->segment<3>(3 * s) += dd.col(col);
+        g0 -= dd.col(col);
+      }
+      const int s0 = slot_[static_cast<std::size_t>(tet.v[0])];
+      if (s0 >= 0) g->segment<3>(3 * s0) += g0;
+    }
+    for (const UntangleAnchor& a : anchors_) {
+      const int s = slot_[static_cast<std::size_t>(a.point)];
+      if (s < 0) continue;
+      const Vec3 d = positions_[static_cast<std::size_t>(a.point)] - a.target;
+      e += a.weight * d.squaredNorm();
+      if (g) g->segment<3>(3 * s) += 2.0 * a.weight * d;
+    }
+    return e;
+  }
+  int evaluations = 0;
+
+ private:
+  std::vector<Vec3>& positions_;
+  const std::vector<UntangleTet>& tets_;
+  const std::vector<UntangleAnchor>& anchors_;
+  double lambda_;
+  std::vector<int> slot_, free_, active_;
+};
+
+struct Census {
+  long inverted = 0, uncounted_inverted = 0;
+  double min_det = std::numeric_limits<double>::infinity();
+};
+
+Census census(const std::vector<Vec3>& positions, const std::vector<UntangleTet>& tets, double min_det) {
+  Census c;
+  const std::vector<double> dets = tet_jacobian_dets(positions, tets);
+  bool any = false;
+  for (std::size_t t = 0; t < tets.size(); ++t) {
+    const double d = dets[t];
+    if (!tets[t].counted) {
+      c.uncounted_inverted += d > 0.0 ? 0 : 1;
+      continue;
+    }
+    any = true;
+    c.min_det = std::min(c.min_det, d);
+    if (!(d > min_det)) ++c.inverted;
+  }
+  if (!any) c.min_det = 0.0;
+  return c;
+}
+
+// L-BFGS with a backtracking (Armijo) line search, `iterations` steps at fixed eps; returns the
+// iterations done (stops early at a stationary point or when no step decreases the energy).
+int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int history) {
+  Eigen::VectorXd g;
+  double e = energy.evaluate(x, eps, &g);
+  std::deque<std::pair<Eigen::VectorXd, Eigen::VectorXd>> pairs;  // (s, y)
+  int done = 0;
+  for (; done < iterations; ++done) {
+    if (!(g.squaredNorm() > 0.0) || !std::isfinite(e)) break;
+    // Two-loop recursion.
+    Eigen::VectorXd q = g;
+    std::vector<double> alpha(pairs.size());
+    for (std::size_t i = pairs.size(); i-- > 0;) {
+      const double rho = 1.0 / pairs[i].second.dot(pairs[i].first);
+      alpha[i] = rho * pairs[i].first.dot(q);
+      q -= alpha[i] * pairs[i].second;
+    }
+    if (!pairs.empty()) q *= pairs.back().first.dot(pairs.back().second) / pairs.back().second.squaredNorm();
+    else q *= 1.0 / std::max(1.0, g.cwiseAbs().maxCoeff());
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      const double rho = 1.0 / pairs[i].second.dot(pairs[i].first);
+      const double beta = rho * pairs[i].second.dot(q);
+      q += (alpha[i] - beta) * pairs[i].first;
+    }
+    Eigen::VectorXd direction = -q;
+    double slope = g.dot(direction);
+    if (!(slope < 0.0)) {  // not a descent direction: restart from the gradient
+      pairs.clear();
+      direction = -g / std::max(1.0, g.cwiseAbs().maxCoeff());
+      slope = g.dot(direction);
+    }
+    double step = 1.0;
+    Eigen::VectorXd trial, g_trial;
+    double e_trial = 0.0;
+    bool accepted = false;
+    for (int halving = 0; halving < 30; ++halving, step *= 0.5) {
+      trial = x + step * direction;
+      e_trial = energy.evaluate(trial, eps, &g_trial);
+      if (std::isfinite(e_trial) && e_trial <= e + 1e-4 * step * slope) {
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) {
+      energy.set(x);
+      if (pairs.empty()) break;
+      pairs.clear();
+      continue;
+    }
+    Eigen::VectorXd s = trial - x, y = g_trial - g;
+    if (s.dot(y) > 1e-12 * s.norm() * y.norm()) {
+      pairs.emplace_back(std::move(s), std::move(y));
+      if (static_cast<int>(pairs.size()) > history) pairs.pop_front();
+    }
+    x = std::move(trial);
+    g = std::move(g_trial);
+    const double decrease = e - e_trial;
+    e = e_trial;
+    if (decrease <= 1e-13 * std::abs(e)) {
+      ++done;
+      break;
+    }
+  }
+  energy.set(x);
+  return done;
+}
+
+}  // namespace
+
+void UntangleOptions::validate() const {
+  if (!(lambda > 0.0 && lambda < 1.0)) throw OptionError("untangle lambda: must be in (0, 1), got " + std::to_string(lambda));
+  if (history < 1 || history > 100) throw OptionError("untangle history: must be in 1..100, got " + std::to_string(history));
+  if (stage_iterations < 1 || stage_iterations > 100000)
+    throw OptionError("untangle stage_iterations: must be in 1..100000, got " + std::to_string(stage_iterations));
+  if (stall_stages < 1 || stall_stages > 10000)
+    throw OptionError("untangle stall_stages: must be in 1..10000, got " + std::to_string(stall_stages));
+  if (max_stages < 1 || max_stages > 10000)
+    throw OptionError("untangle max_stages: must be in 1..10000, got " + std::to_string(max_stages));
+  if (polish_iterations < 0 || polish_iterations > 100000)
+    throw OptionError("untangle polish_iterations: must be in 0..100000, got " + std::to_string(polish_iterations));
+  if (!(min_det >= 0.0 && min_det < 1.0)) throw OptionError("untangle min_det: must be in [0, 1), got " + std::to_string(min_det));
+}
+
+nlohmann::json UntangleReport::to_json() const {
+  return {{"tets", tets},
+          {"free_points", free_points},
+          {"inverted_before", inverted_before},
+          {"inverted_after", inverted_after},
+          {"counted", counted},
+          {"uncounted_inverted_after", uncounted_inverted_after},
+          {"min_det_before", min_det_before},
+          {"min_det_after", min_det_after},
+          {"stages", stages},
+          {"iterations", iterations},
+          {"evaluations", evaluations},
+          {"eps", eps},
+          {"seconds", seconds}};
+}
+
+std::vector<double> tet_jacobian_dets(const std::vector<Vec3>& positions, const std::vector<UntangleTet>& tets) {
+  std::vector<double> out(tets.size());
+  for (std::size_t t = 0; t < tets.size(); ++t)
+    out[t] = (edge_matrix(positions, tets[t].v) * tets[t].reference_inverse).determinant();
+  return out;
+}
+
+UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& fixed,
+                        const std::vector<UntangleTet>& tets, const UntangleOptions& options,
+                        const std::vector<UntangleAnchor>& anchors) {
+  options.validate();
+  const auto start = Clock::now();
+  if (fixed.size() != positions.size())
+    throw Error(ErrorCode::internal, "untangle: " + std::to_string(fixed.size()) + " fixed flags for " +
+                                         std::to_string(positions.size()) + " points");
+  for (const UntangleTet& t : tets)
+    for (int v : t.v)
+      if (v < 0 || static_cast<std::size_t>(v) >= positions.size())
+        throw Error(ErrorCode::internal, "untangle: tetrahedron vertex " + std::to_string(v) + " out of range");
+  for (const UntangleAnchor& a : anchors)
+    if (a.point < 0 || static_cast<std::size_t>(a.point) >= positions.size() || !(a.weight >= 0.0) || !a.target.allFinite())
+      throw Error(ErrorCode::internal, "untangle: bad anchor of point " + std::to_string(a.point));
+  for (const Vec3& p : positions)
+    if (!p.allFinite()) throw Error(ErrorCode::internal, "untangle: a point is not finite");
+
+  UntangleReport report;
+  report.tets = static_cast<long>(tets.size());
+  for (const UntangleTet& t : tets) report.counted += t.counted ? 1 : 0;
+  Census before = census(positions, tets, options.min_det);
+  report.inverted_before = before.inverted;
+  report.min_det_before = before.min_det;
+  Energy energy(positions, fixed, tets, options.lambda, anchors);
+  report.free_points = static_cast<long>(energy.free_count());
+  Census now = before;
+  if ((before.inverted > 0 || !anchors.empty()) && energy.free_count() > 0) {
+    Eigen::VectorXd x = energy.get();
+    // Initial eps: large enough that the most inverted tetrahedron still has a finite,
+    // well-scaled energy (Garanzha et al. 2021: eps ~ the depth of the worst inversion).
+    double eps = std::max(1e-2, 2.0 * std::max(0.0, -now.min_det));
+    double e_prev = energy.evaluate(x, eps, nullptr);
+    double best_min_det = now.min_det;
+    long best_inverted = now.inverted;
+    int stalled = 0;
+    for (int stage = 0; stage < options.max_stages; ++stage) {
+      report.iterations += minimise(energy, x, eps, options.stage_iterations, options.history);
+      ++report.stages;
+      report.eps = eps;
+      now = census(positions, tets, options.min_det);
+      if (now.inverted == 0) break;
+      if (now.min_det > best_min_det + 1e-6 || now.inverted < best_inverted) {
+        best_min_det = std::max(best_min_det, now.min_det);
+        best_inverted = std::min(best_inverted, now.inverted);
+        stalled = 0;
+      } else if (++stalled >= options.stall_stages) {
+        break;
+      }
+      // The paper's rule: sigma from the relative energy decrease, mu a share of chi(min det).
+      const double e_new = energy.evaluate(x, eps, nullptr);
+      const double sigma = std::max(1.0 - e_new / e_prev, 0.1);
+      const double mu = (1.0 - sigma) * chi(now.min_det, eps);
+      eps = now.min_det < mu ? 2.0 * std::sqrt(mu * (mu - now.min_det)) : 1e-13;
+      eps = std::max(eps, 1e-13);
+      e_prev = energy.evaluate(x, eps, nullptr);
+    }
+    if (now.inverted == 0 && options.polish_iterations > 0) {
+      // Improve the shapes with the barrier in force (a small eps keeps every det positive).
+      const std::vector<Vec3> untangled = positions;
+      report.iterations += minimise(energy, x, std::min(report.eps, 1e-8), options.polish_iterations, options.history);
+      const Census polished = census(positions, tets, options.min_det);
+      if (polished.inverted == 0) now = polished;
+      else positions = untangled;
+    }
+  }
+  report.inverted_after = now.inverted;
+  report.uncounted_inverted_after = census(positions, tets, options.min_det).uncounted_inverted;
+  report.min_det_after = now.min_det;
+  report.evaluations = energy.evaluations;
+  report.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return report;
+}
+
+}  // namespace fascicle

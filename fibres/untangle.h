@@ -1,0 +1,103 @@
+#pragma once
+/// \file untangle.h
+/// Untangling a tetrahedral mesh with fixed points: moves the free points until every
+/// tetrahedron has a positive volume, keeping the cells close to a reference shape.
+///
+/// Method: the regularised barrier of Garanzha, Kaporin, Kudryavtseva, Protais, Ray and
+/// Sokolov 2021 ("Foldover-free maps in 50 lines of code", ACM Trans. Graph. 40(4)). For a
+/// tetrahedron with Jacobian J = D S^-1 (D its edge vectors, S those of its reference shape)
+///     f(J) = (1 - lambda) tr(J^T J) / chi(det J)^(2/3) + lambda (det^2 J + 1) / chi(det J),
+///     chi(d) = (d + sqrt(eps^2 + d^2)) / 2,
+/// a shape term and a volume term that are finite for any J while eps > 0 and become a
+/// barrier against det J <= 0 as eps -> 0. The total (weighted sum) is minimised by L-BFGS
+/// with a backtracking line search, eps lowered after each stage by the paper's rule (from the
+/// smallest det J and the energy's relative decrease), until every tetrahedron is positive,
+/// then a few more iterations improve the shapes with the barrier in force.
+///
+/// The fibre lattice uses it to unfold the cells that the settle leaves inverted
+/// (fibres/decompose.h): hexahedral cells split into the six tetrahedra of the Kuhn
+/// triangulation that fibres/fibre_check.h counts.
+
+#include "geometry/mesh.h"
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+namespace fascicle {
+
+/// Options of untangle().
+struct UntangleOptions {
+  double lambda = 0.05;        ///< weight of the volume term against the shape term, (0, 1) (default 0.05)
+  int history = 8;             ///< L-BFGS pairs kept, >= 1 (default 8)
+  int stage_iterations = 40;   ///< L-BFGS iterations per eps stage, >= 1 (default 40)
+  int max_stages = 60;         ///< eps stages at most, >= 1 (default 60)
+  /// Stop when neither the smallest det J has grown nor the inverted count fallen for this
+  /// many stages, >= 1 (default 15).
+  int stall_stages = 15;
+  int polish_iterations = 30;  ///< iterations after the last tetrahedron turned positive, >= 0 (default 30)
+  /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
+  /// (default 1e-4: well clear of the round-off limit of the quality check).
+  double min_det = 1e-4;
+  /// Throws OptionError naming the first bad field.
+  void validate() const;
+};
+
+/// One tetrahedron of an untangle problem: vertex indices (positive orientation = the
+/// reference's), the inverse of its reference edge matrix S (columns v1 - v0, v2 - v0, v3 - v0,
+/// det S > 0) and its weight (e.g. its reference volume share).
+struct UntangleTet {
+  std::array<int, 4> v{};
+  Eigen::Matrix3d reference_inverse = Eigen::Matrix3d::Identity();
+  double weight = 1.0;
+  /// Whether the tetrahedron counts: the stopping rule and the census look at counted ones only;
+  /// the others (e.g. cells against fixed boundary points that may stay inverted) still pull
+  /// through the energy (default true).
+  bool counted = true;
+  /// Lower bound of eps for this tetrahedron (default 0: the barrier tightens with the stage's
+  /// eps). A positive floor makes its term a soft preference for positive volume that never
+  /// becomes a barrier (for tetrahedra that may be impossible to unfold).
+  double eps_floor = 0.0;
+};
+
+/// A soft pin: the energy gains weight |x_point - target|^2 (a zero-length spring), so that a
+/// point can be held near a place (e.g. just inside the muscle) and still give way where the
+/// cells need it.
+struct UntangleAnchor {
+  int point = 0;
+  Vec3 target = Vec3::Zero();
+  double weight = 0.0;  ///< energy per squared length unit, >= 0
+};
+
+/// What untangle() did.
+struct UntangleReport {
+  long tets = 0;               ///< tetrahedra in the problem
+  long free_points = 0;        ///< points it may move
+  long counted = 0;            ///< of them, counted ones
+  long inverted_before = 0;    ///< counted tetrahedra with det J <= min_det before
+  long inverted_after = 0;     ///< and after
+  long uncounted_inverted_after = 0;  ///< tetrahedra not counted with det J <= 0 after
+  double min_det_before = 0.0, min_det_after = 0.0;  ///< smallest counted det J before and after
+  int stages = 0;              ///< eps stages run
+  int iterations = 0;          ///< L-BFGS iterations in all
+  int evaluations = 0;         ///< energy and gradient evaluations
+  double eps = 0.0;            ///< eps of the last stage
+  double seconds = 0.0;
+  bool untangled() const { return inverted_after == 0; }
+  nlohmann::json to_json() const;
+};
+
+/// Untangles `positions` (#P) in place: only points with fixed[q] == 0 move. Tetrahedra whose
+/// four points are all fixed are counted but cannot change. Does nothing (but count) when no
+/// tetrahedron is inverted. Throws OptionError for bad options, InputError(internal) for a
+/// vertex index out of range or a non-finite position.
+UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& fixed,
+                        const std::vector<UntangleTet>& tets, const UntangleOptions& options = {},
+                        const std::vector<UntangleAnchor>& anchors = {});
+
+/// det J of every tetrahedron at `positions` (its signed volume relative to its reference).
+std::vector<double> tet_jacobian_dets(const std::vector<Vec3>& positions, const std::vector<UntangleTet>& tets);
+
+}  // namespace fascicle

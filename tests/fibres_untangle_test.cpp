@@ -1,0 +1,187 @@
+// Barrier untangling of tetrahedral cells (fibres/untangle.h).
+#include "fibres/untangle.h"
+#include "geometry/errors.h"
+
+#include <catch2/catch.hpp>
+#include <Eigen/LU>
+#include <random>
+
+using namespace fascicle;
+
+namespace {
+
+// An n x n x n grid of the unit cube, boundary fixed, each cell split into the six Kuhn
+// tetrahedra around its diagonal with the parity that makes them positive, reference = the cell.
+struct Grid {
+  int n = 0;
+  std::vector<Vec3> positions;
+  std::vector<char> fixed;
+  std::vector<UntangleTet> tets;
+  int index(int i, int j, int k) const { return i + n * (j + n * k); }
+};
+
+Grid make_grid(int n) {
+  Grid g;
+  g.n = n;
+  const double h = 1.0 / (n - 1);
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        g.positions.emplace_back(i * h, j * h, k * h);
+        g.fixed.push_back(i == 0 || j == 0 || k == 0 || i == n - 1 || j == n - 1 || k == n - 1 ? 1 : 0);
+      }
+  static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
+  for (int k = 0; k + 1 < n; ++k)
+    for (int j = 0; j + 1 < n; ++j)
+      for (int i = 0; i + 1 < n; ++i)
+        for (int t = 0; t < 6; ++t) {
+          std::array<int, 4> local{0, 0, 0, 0};
+          int corner = 0;
+          for (int step = 0; step < 3; ++step) {
+            corner |= 1 << perms[t][step];
+            local[static_cast<std::size_t>(step) + 1] = corner;
+          }
+          if (t >= 3) std::swap(local[2], local[3]);
+          UntangleTet tet;
+          for (int v = 0; v < 4; ++v) {
+            const int c = local[static_cast<std::size_t>(v)];
+            tet.v[static_cast<std::size_t>(v)] = g.index(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+          }
+          Eigen::Matrix3d s;
+          for (int col = 0; col < 3; ++col)
+            s.col(col) = g.positions[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])] -
+                         g.positions[static_cast<std::size_t>(tet.v[0])];
+          REQUIRE(s.determinant() > 0.0);
+          tet.reference_inverse = s.inverse();
+          g.tets.push_back(tet);
+        }
+  return g;
+}
+
+long inverted(const std::vector<Vec3>& x, const std::vector<UntangleTet>& tets) {
+  long count = 0;
+  for (double d : tet_jacobian_dets(x, tets)) count += d > 0.0 ? 0 : 1;
+  return count;
+}
+
+}  // namespace
+
+TEST_CASE("untangle: the regular grid is at rest and is left alone", "[fibres][untangle]") {
+  Grid g = make_grid(5);
+  const std::vector<Vec3> before = g.positions;
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
+  CHECK(r.inverted_before == 0);
+  CHECK(r.inverted_after == 0);
+  CHECK(r.iterations == 0);
+  CHECK(g.positions == before);
+  for (double d : tet_jacobian_dets(g.positions, g.tets)) CHECK(d == Approx(1.0));
+}
+
+TEST_CASE("untangle: a point pushed through its neighbours is brought back, fixed points untouched",
+          "[fibres][untangle]") {
+  Grid g = make_grid(6);
+  const std::vector<Vec3> before = g.positions;
+  // Fold: two interior points swapped along x, a third pushed past its neighbour in z.
+  std::swap(g.positions[static_cast<std::size_t>(g.index(2, 2, 2))], g.positions[static_cast<std::size_t>(g.index(3, 2, 2))]);
+  g.positions[static_cast<std::size_t>(g.index(2, 3, 3))].z() += 0.35;
+  REQUIRE(inverted(g.positions, g.tets) > 0);
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
+  CHECK(r.inverted_before > 0);
+  CHECK(r.untangled());
+  CHECK(r.min_det_after > UntangleOptions{}.min_det);
+  CHECK(inverted(g.positions, g.tets) == 0);
+  for (std::size_t q = 0; q < g.positions.size(); ++q)
+    if (g.fixed[q]) CHECK(g.positions[q] == before[q]);  // bitwise
+  for (const Vec3& p : g.positions) CHECK(p.allFinite());
+}
+
+TEST_CASE("untangle: random interior tangles of a grid are unfolded", "[fibres][untangle]") {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  for (int trial = 0; trial < 5; ++trial) {
+    Grid g = make_grid(7);
+    for (std::size_t q = 0; q < g.positions.size(); ++q)
+      if (!g.fixed[q]) g.positions[q] += Vec3(jitter(rng), jitter(rng), jitter(rng));
+    REQUIRE(inverted(g.positions, g.tets) > 0);
+    const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
+    INFO("trial " << trial << ": " << r.to_json().dump());
+    CHECK(r.untangled());
+    CHECK(inverted(g.positions, g.tets) == 0);
+  }
+}
+
+TEST_CASE("untangle: an impossible problem is reported, not hidden", "[fibres][untangle]") {
+  Grid g = make_grid(4);
+  // A fixed corner-edge point moved across its neighbour: the tetrahedron (2,0,0) (3,0,0)
+  // (3,1,0) (3,1,1) has four fixed points and turns over; nothing can unfold it.
+  g.positions[static_cast<std::size_t>(g.index(3, 1, 0))].y() = -0.5;
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
+  CHECK(r.inverted_before > 0);
+  CHECK_FALSE(r.untangled());
+  CHECK(r.inverted_after > 0);
+  for (const Vec3& p : g.positions) CHECK(p.allFinite());
+}
+
+TEST_CASE("untangle: uncounted tetrahedra do not stop it; anchors pull", "[fibres][untangle]") {
+  Grid g = make_grid(5);
+  const int q = g.index(2, 2, 2);
+  const Vec3 start = g.positions[static_cast<std::size_t>(q)];
+  const Vec3 target = start + Vec3(0.05, 0.0, 0.0);
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets, {}, {{q, target, 1e4}});
+  CHECK(r.untangled());
+  // Pulled most of the way to the anchor, against the cells' pull back.
+  CHECK((g.positions[static_cast<std::size_t>(q)] - target).norm() < 0.5 * (start - target).norm());
+
+  Grid h = make_grid(4);
+  h.positions[static_cast<std::size_t>(h.index(3, 1, 0))].y() = -0.5;  // impossible, as above
+  for (UntangleTet& t : h.tets) t.counted = false;
+  const UntangleReport u = untangle(h.positions, h.fixed, h.tets);
+  CHECK(u.counted == 0);
+  CHECK(u.untangled());  // nothing counted, nothing to do
+  CHECK(u.uncounted_inverted_after > 0);
+}
+
+TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
+  Grid g = make_grid(3);
+  UntangleOptions o;
+  o.lambda = 0.0;
+  CHECK_THROWS_AS(untangle(g.positions, g.fixed, g.tets, o), OptionError);
+  o = {};
+  o.history = 0;
+  CHECK_THROWS_AS(o.validate(), OptionError);
+  o = {};
+  o.min_det = -1.0;
+  CHECK_THROWS_AS(o.validate(), OptionError);
+  std::vector<UntangleTet> bad = g.tets;
+  bad[0].v[2] = 1000;
+  CHECK_THROWS_AS(untangle(g.positions, g.fixed, bad), Error);
+  std::vector<Vec3> nan = g.positions;
+  nan[13].x() = std::nan("");
+  CHECK_THROWS_AS(untangle(nan, g.fixed, g.tets), Error);
+  CHECK_THROWS_AS(untangle(g.positions, g.fixed, g.tets, {}, {{0, Vec3::Zero(), -1.0}}), Error);
+}
+
+#include "fibres/decompose.h"
+#include "geometry/mesh_io.h"
+#include "tests/test_common.h"
+
+TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells comes out unfolded",
+          "[fibres][untangle][data]") {
+  FASCICLE_REQUIRE_DATA();
+  // VHM left gracilis: the settle leaves cells folded near both ends (7 on 2026-11-21).
+  const PolygonSoup soup =
+      read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_Gracilis_smooth.stl");
+  DecomposeOptions options;
+  options.untangle_cells = false;
+  const Decomposition folded = decompose(soup, {}, options);
+  REQUIRE(folded.report.quality.inverted_cells > 0);
+  options.untangle_cells = true;
+  const Decomposition unfolded = decompose(soup, {}, options);
+  const nlohmann::json u = unfolded.report.to_json()["untangle"];
+  INFO(u.dump());
+  CHECK(u["inverted_left"].get<long>() == 0);
+  CHECK(unfolded.report.quality.inverted_cells == 0);
+  CHECK(unfolded.report.quality.inside_fraction == 1.0);
+  CHECK(unfolded.report.quality.attachment.origin_max <= 0.02);
+  CHECK(unfolded.report.quality.attachment.insertion_max <= 0.02);
+}
