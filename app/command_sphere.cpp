@@ -1,4 +1,5 @@
 // fascicle sphere IN -o OUT [--report R.json] [--sphere-method tutte|relax]
+//                 [--sphere-start automatic|progressive]
 //                 [--origin O.xyz --insertion I.xyz]: repairs the mesh, maps it onto the unit
 // sphere (same connectivity) and reports the map's quality; with landmark files (or
 // automatically) also the attachment areas' centres on the sphere, and how well the sphere map
@@ -31,7 +32,7 @@ namespace fascicle::app {
 namespace {
 
 struct SphereArgs {
-  std::string input, output, report, method = "tutte", origin, insertion;
+  std::string input, output, report, method = "tutte", start = "automatic", origin, insertion;
   SphereMapOptions options;
   AttachmentOptions attachments;
 };
@@ -107,6 +108,7 @@ nlohmann::json align_template(const Vec3& target_origin, const Vec3& target_inse
 void run_sphere(const SphereArgs& args) {
   SphereMapOptions options = args.options;
   options.method = sphere_method_from_string(args.method);
+  options.start = sphere_start_from_string(args.start);
   options.validate();
   args.attachments.validate();
   if ((args.origin.empty()) != (args.insertion.empty()))
@@ -176,6 +178,11 @@ void add_sphere_command(CLI::App& app) {
   cmd->add_option("--report", args->report, "Write a JSON report (repair, map quality, attachment centres)");
   cmd->add_option("--sphere-method", args->method, "tutte: Tutte embedding, checked bijective (default); relax: the thesis's method")
       ->check(CLI::IsMember({"tutte", "relax"}))
+      ->capture_default_str();
+  cmd->add_option("--sphere-start", args->start,
+                  "tutte: automatic (tube or stereographic start, progressive-mesh start when neither is "
+                  "bijective; default) or progressive (progressive-mesh start only)")
+      ->check(CLI::IsMember({"automatic", "progressive"}))
       ->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");

@@ -15,6 +15,14 @@ namespace fascicle {
 
 const char* to_string(SphereMethod method) { return method == SphereMethod::relax ? "relax" : "tutte"; }
 
+const char* to_string(SphereStart start) { return start == SphereStart::progressive ? "progressive" : "automatic"; }
+
+SphereStart sphere_start_from_string(const std::string& name) {
+  if (name == "automatic") return SphereStart::automatic;
+  if (name == "progressive") return SphereStart::progressive;
+  throw OptionError("--sphere-start: '" + name + "' is not a start (use automatic or progressive)");
+}
+
 SphereMethod sphere_method_from_string(const std::string& name) {
   if (name == "tutte") return SphereMethod::tutte;
   if (name == "relax") return SphereMethod::relax;
@@ -40,6 +48,10 @@ void SphereMapOptions::validate() const {
     bad("reweight_exponent", std::to_string(reweight_exponent), "must be in (0, 2]");
   if (!(reweight_target >= 0.0)) bad("reweight_target", std::to_string(reweight_target), "must be >= 0");
   if (reweight_rounds < 0) bad("reweight_rounds", std::to_string(reweight_rounds), "must be >= 0");
+  if (progressive_max_valence < 6)
+    bad("progressive_max_valence", std::to_string(progressive_max_valence), "must be >= 6");
+  if (progressive_relax_rounds < 0)
+    bad("progressive_relax_rounds", std::to_string(progressive_relax_rounds), "must be >= 0");
   if (untangle_sweeps < 0) bad("untangle_sweeps", std::to_string(untangle_sweeps), "must be >= 0");
   if (relax_threshold_lowerings < 0)
     bad("relax_threshold_lowerings", std::to_string(relax_threshold_lowerings), "must be >= 0");
@@ -54,6 +66,7 @@ nlohmann::json SphereMapReport::to_json() const {
                    {"seconds", seconds}};
   if (method == "tutte") {
     j["initial_map"] = initial_map;
+    j["starts_tried"] = starts_tried;
     j["elongation"] = elongation;
     j["reweight_rounds"] = reweight_rounds;
     j["cut_face"] = cut_face;
@@ -96,30 +109,54 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     const std::vector<Start> starts = tube_first ? std::vector<Start>{Start::prism, Start::lambert, Start::stereographic}
                                                  : std::vector<Start>{Start::stereographic, Start::prism, Start::lambert};
     std::vector<double> scale(mesh.triangles.size(), 1.0);
-    const std::vector<Eigen::Vector2d> uv = tube_embedder.valid() ? tube_embedder.solve() : std::vector<Eigen::Vector2d>{};
+    const std::vector<Eigen::Vector2d> uv = tube_embedder.valid() && options.start == SphereStart::automatic
+                                                ? tube_embedder.solve()
+                                                : std::vector<Eigen::Vector2d>{};
     detail::TubeFold best_fold = detail::TubeFold::prism;
-    for (const Start start_kind : starts) {
-      const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
-      detail::TutteLift lift = start_kind == Start::stereographic
-                                   ? detail::tutte_lift(mesh, adjacency, options.anisotropic)
-                                   : tube_embedder.lift(uv, fold);
-      if (lift.sphere.empty()) continue;
-      if (start_kind == Start::stereographic) lift.kind = "stereographic";
-      long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
-      if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
-      if (best_bad < 0 || bad < best_bad) {
-        best = std::move(lift);
-        best_bad = bad;
-        best_fold = fold;
+    if (options.start == SphereStart::automatic)
+      for (const Start start_kind : starts) {
+        const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
+        detail::TutteLift lift = start_kind == Start::stereographic
+                                     ? detail::tutte_lift(mesh, adjacency, options.anisotropic)
+                                     : tube_embedder.lift(uv, fold);
+        if (lift.sphere.empty()) continue;
+        if (start_kind == Start::stereographic) lift.kind = "stereographic";
+        report.starts_tried.push_back(start_kind == Start::stereographic ? "stereographic"
+                                      : start_kind == Start::prism       ? "tube-prism"
+                                                                         : "tube-lambert");
+        long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+        if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
+        if (best_bad < 0 || bad < best_bad) {
+          best = std::move(lift);
+          best_bad = bad;
+          best_fold = fold;
+        }
+        if (best_bad == 0) break;
       }
-      if (best_bad == 0) break;
+    // Progressive-mesh start (guaranteed): when forced, or when no other start gave a bijection.
+    if (options.start == SphereStart::progressive || best_bad != 0) {
+      report.starts_tried.push_back("progressive");
+      detail::ProgressiveResult progressive =
+          detail::progressive_embedding(mesh, adjacency, options.progressive_max_valence, options.progressive_relax_rounds);
+      long bad = 0;
+      for (const Triangle& t : mesh.triangles) {
+        const Vec3 &a = progressive.sphere[t[0]], &b = progressive.sphere[t[1]], &c = progressive.sphere[t[2]];
+        if (!(detail::sphere_det(a, b, c) > 0.0)) ++bad;
+      }
+      if (best_bad < 0 || bad <= best_bad) {
+        best.sphere = std::move(progressive.sphere);
+        best.kind = "progressive";
+        best.cut_face = -1;
+        best.margin = 0.0;
+        best_bad = bad;
+      }
     }
     // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
     // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
     // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
     // positive weights, hence bijective in the plane; a round is kept only when the lifted map
     // has no bad triangle and a lower mean |log area ratio|.
-    if (best.kind != "stereographic" && options.reweight_rounds > 0) {
+    if (best.kind == "tube" && options.reweight_rounds > 0) {
       auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
         double sum = 0.0;
         for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
@@ -155,8 +192,8 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     report.lift_margin = best.margin;
     map.positions = std::move(best.sphere);
     // The tube map is area-centred by construction (equal-area lift of an arc-length layout);
-    // the stereographic start needs the Moebius centring.
-    if (report.initial_map == "stereographic")
+    // the stereographic and progressive starts need the Moebius centring.
+    if (report.initial_map != "tube")
       report.mobius_steps = detail::mobius_center(mesh, shares, map.positions, options.mobius_steps,
                                                   options.mobius_tolerance, report.mobius_residual);
     report.iterations = detail::balance_areas(mesh, adjacency, shares, map.positions, options.balance_sweeps,

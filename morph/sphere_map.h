@@ -51,8 +51,18 @@ enum class SphereMethod {
   relax,  ///< the thesis's normalise-and-relax method (may fail)
 };
 
+/// Initial map of the `tutte` method.
+enum class SphereStart {
+  automatic,    ///< tube or stereographic by elongation, then the other, then progressive (default)
+  progressive,  ///< only the progressive-mesh start (collapse to a tetrahedron, split back)
+};
+
 /// "tutte" or "relax".
 const char* to_string(SphereMethod method);
+/// "automatic" or "progressive".
+const char* to_string(SphereStart start);
+/// Parses "automatic" / "progressive"; throws OptionError naming `--sphere-start` otherwise.
+SphereStart sphere_start_from_string(const std::string& name);
 /// Parses "tutte" / "relax"; throws OptionError naming `--sphere-method` otherwise.
 SphereMethod sphere_method_from_string(const std::string& name);
 
@@ -62,6 +72,17 @@ struct SphereMapOptions {
   SphereMethod method = SphereMethod::tutte;
 
   // --- tutte ---
+  /// Initial map (default automatic: the tube or stereographic start, and the progressive-mesh
+  /// start only when neither of those gives a bijection after untangling; progressive: that
+  /// start alone, which is bijective by construction but balances areas less well on long shapes).
+  SphereStart start = SphereStart::automatic;
+  /// Progressive start: largest valence a collapse may give the vertex it keeps, while other
+  /// edges can still be collapsed (default 12; raised step by step when none can). Low valences keep the
+  /// coarse levels free of fans of thin triangles.
+  int progressive_max_valence = 12;
+  /// Progressive start: rounds of flip-free local relaxation of the new vertex, its partner and
+  /// their ring after each vertex split (default 2; 0 leaves each new vertex where it was split off).
+  int progressive_relax_rounds = 2;
   /// Raise the Tutte weights of edges along the muscle's local long direction by k^2, with
   /// k = (end-to-end edge distance)^2 / area, about length / circumference (default true). Any
   /// positive weights give a bijection; these keep long muscles from being crowded
@@ -137,7 +158,8 @@ struct SphereMapReport {
   std::string status;            ///< "ok" or "failed"
   std::string failure;           ///< how it failed, empty when ok
   SphereQuality quality;
-  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut) or "tube" (cut end to end)
+  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut), "tube" (cut end to end) or "progressive"
+  std::vector<std::string> starts_tried;  ///< tutte: starts computed, in order ("tube-prism", "tube-lambert", "stereographic", "progressive")
   double elongation = 0.0;       ///< tutte: (end-to-end edge distance)^2 / area
   int reweight_rounds = 0;       ///< tutte: reweighting rounds kept after the lift
   int cut_face = -1;             ///< tutte: the triangle cut out (it covers the north pole)
