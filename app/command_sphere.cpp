@@ -1,5 +1,5 @@
 // fascicle sphere IN -o OUT [--report R.json] [--sphere-method tutte|relax]
-//                 [--sphere-start automatic|progressive]
+//                 [--sphere-start automatic|tube|progressive|stereographic]
 //                 [--origin O.xyz --insertion I.xyz]: repairs the mesh, maps it onto the unit
 // sphere (same connectivity) and reports the map's quality; with landmark files (or
 // automatically) also the attachment areas' centres on the sphere, and how well the sphere map
@@ -180,9 +180,9 @@ void add_sphere_command(CLI::App& app) {
       ->check(CLI::IsMember({"tutte", "relax"}))
       ->capture_default_str();
   cmd->add_option("--sphere-start", args->start,
-                  "tutte: automatic (tube or stereographic start, progressive-mesh start when neither is "
-                  "bijective; default) or progressive (progressive-mesh start only)")
-      ->check(CLI::IsMember({"automatic", "progressive"}))
+                  "tutte: automatic (long shapes: tube start, progressive-mesh start when it is not bijective; "
+                  "round ones: progressive; default), or one start only: tube, progressive, stereographic")
+      ->check(CLI::IsMember({"automatic", "tube", "progressive", "stereographic"}))
       ->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");

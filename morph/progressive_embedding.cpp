@@ -107,7 +107,21 @@ struct DynamicMesh {
 
   /// Performs the collapse u -> v (checked by can_collapse); appends the faces whose u corner
   /// became v to `moved`.
-  void collapse(int u, int v, const std::array<int, 2>& dead, std::vector<int>& moved) {
+  void collapse(int u, int v, const std::array<int, 2>& dead, std::vector<int>& moved,
+                std::array<int, 4>* receivers = nullptr) {
+    if (receivers) {
+      // Each dead face (u, v, o) hands its area to the faces across its edges u-o and v-o, which
+      // become neighbours across the merged edge v-o.
+      for (int k = 0; k < 2; ++k) {
+        const auto r = rotate_to(faces[dead[k]], u);
+        const int o = r[1] == v ? r[2] : r[1];
+        (*receivers)[2 * k] = (*receivers)[2 * k + 1] = -1;
+        for (int f : vertex_faces[u])
+          if (f != dead[0] && f != dead[1] && has(faces[f], o)) (*receivers)[2 * k] = f;
+        for (int f : vertex_faces[v])
+          if (f != dead[0] && f != dead[1] && has(faces[f], o)) (*receivers)[2 * k + 1] = f;
+      }
+    }
     for (int f : dead)
       for (int k = 0; k < 3; ++k)
         if (faces[f][k] != u) erase_one(vertex_faces[faces[f][k]], f);
@@ -123,16 +137,18 @@ struct DynamicMesh {
   }
 };
 
-/// One damped Newton step of E(p) = sum over the faces (p, b, d) of w / det(p, b, d) on the
-/// tangent plane at p (the balancing move of balance_on_sphere.cpp with unit weights), halved
+/// One damped Newton step of E(p) = sum over the faces f = (p, b, d) of w_f^2 / det(p, b, d) on
+/// the tangent plane at p (the balancing move of balance_on_sphere.cpp; w_f is the surface area
+/// the face stands for at its level, so the minimum has det proportional to it), halved
 /// until every face keeps a robustly positive det (and at least min(min_step_det, its det before))
 /// and E does not rise. det is linear in the unnormalised point, so a move whose end keeps every
 /// det positive keeps it positive along the whole way: the map stays a bijection.
-bool relax_vertex(const DynamicMesh& dm, std::vector<Vec3>& x, int w) {
+bool relax_vertex(const DynamicMesh& dm, const std::vector<double>& weight, std::vector<Vec3>& x, int w) {
   thread_local std::vector<std::pair<int, int>> corners;
-  thread_local std::vector<double> before;
+  thread_local std::vector<double> before, a2;
   corners.clear();
   before.clear();
+  a2.clear();
   const Vec3 p = x[w];
   Vec3 g = Vec3::Zero();
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
@@ -144,11 +160,13 @@ bool relax_vertex(const DynamicMesh& dm, std::vector<Vec3>& x, int w) {
     const Vec3 m = b.cross(d);
     const double det = (b - p).cross(d - p).dot(p);
     if (!(det > 0.0)) return false;
+    const double c = weight[f] * weight[f];
     corners.emplace_back(r[1], r[2]);
     before.push_back(det);
-    local += 1.0 / det;
-    g -= m / (det * det);
-    h += (2.0 / (det * det * det)) * m * m.transpose();
+    a2.push_back(c);
+    local += c / det;
+    g -= (c / (det * det)) * m;
+    h += (2.0 * c / (det * det * det)) * m * m.transpose();
   }
   const Vec3 e1 = (std::abs(p.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(p).normalized();
   const Vec3 e2 = p.cross(e1);
@@ -171,7 +189,7 @@ bool relax_vertex(const DynamicMesh& dm, std::vector<Vec3>& x, int w) {
         valid = false;
         break;
       }
-      trial += 1.0 / det;
+      trial += a2[c] / det;
     }
     if (valid && trial <= local) {
       x[w] = q;
@@ -230,7 +248,9 @@ CollapseSequence collapse_to_tetrahedron(const TriangleMesh& mesh, const MeshAdj
       std::swap(u, v);
       if (!dm.can_collapse(u, v, live, limit, dead)) continue;
     }
-    dm.collapse(u, v, dead, seq.moved);
+    std::array<int, 4> receivers{};
+    dm.collapse(u, v, dead, seq.moved, &receivers);
+    seq.receivers.push_back(receivers);
     seq.removed.push_back(u);
     seq.kept.push_back(v);
     seq.dead.push_back(dead);
@@ -288,15 +308,26 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
   const CollapseSequence seq = collapse_to_tetrahedron(mesh, adjacency, max_valence);
   ProgressiveResult result;
   result.collapses = static_cast<long>(seq.removed.size());
-  // Rebuild the dynamic mesh in its collapsed state.
+  // Rebuild the dynamic mesh in its collapsed state, and the area each face stands for there:
+  // the surface share of the face itself plus what dead faces handed to it.
   DynamicMesh dm(mesh);
+  std::vector<double> weight = area_shares(mesh);
+  std::vector<std::array<double, 2>> given(seq.removed.size());
   {
     std::vector<int> moved;
     for (std::size_t i = 0; i < seq.removed.size(); ++i) {
       moved.clear();
+      for (int k = 0; k < 2; ++k) {
+        const int d = seq.dead[i][k];
+        given[i][k] = weight[d];
+        const int r0 = seq.receivers[i][2 * k], r1 = seq.receivers[i][2 * k + 1];
+        if (r0 >= 0) weight[r0] += (r1 >= 0 ? 0.5 : 1.0) * weight[d];
+        if (r1 >= 0) weight[r1] += (r0 >= 0 ? 0.5 : 1.0) * weight[d];
+      }
       dm.collapse(seq.removed[i], seq.kept[i], seq.dead[i], moved);
     }
   }
+  const double weight_floor = 1e-12 / static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1));
   std::vector<Vec3> x(mesh.positions.size(), Vec3::Zero());
   // The base tetrahedron: a regular one, mirrored if its first face comes out clockwise.
   const Vec3 corners[4] = {Vec3(1, 1, 1).normalized(), Vec3(1, -1, -1).normalized(), Vec3(-1, 1, -1).normalized(),
@@ -309,7 +340,12 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
       const Triangle& s = dm.faces[f];
       FASCICLE_CHECK(sphere_det(x[s[0]], x[s[1]], x[s[2]]) > 0.0, "base tetrahedron oriented");
     }
+    for (int round = 0; round < 4 * relax_rounds; ++round)
+      for (int v : seq.base) relax_vertex(dm, weight, x, v);
   }
+  // Whole-level sweeps each time the vertex count doubles: the local moves after a split only
+  // see its neighbourhood, these spread area over the whole coarse mesh while it is small.
+  std::size_t next_sweep = 8;
   std::vector<int> relax_list;
   for (std::size_t step = seq.removed.size(); step-- > 0;) {
     const int u = seq.removed[step], v = seq.kept[step];
@@ -340,6 +376,13 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
     }
     for (int f : seq.dead[step])
       for (int c : dm.faces[f]) dm.vertex_faces[c].push_back(f);
+    for (int k = 0; k < 2; ++k) {
+      const int r0 = seq.receivers[step][2 * k], r1 = seq.receivers[step][2 * k + 1];
+      const double g = given[step][k];
+      if (r0 >= 0) weight[r0] = std::max(weight_floor, weight[r0] - (r1 >= 0 ? 0.5 : 1.0) * g);
+      if (r1 >= 0) weight[r1] = std::max(weight_floor, weight[r1] - (r0 >= 0 ? 0.5 : 1.0) * g);
+      weight[seq.dead[step][k]] = g;
+    }
     dm.vertex_alive[u] = 1;
     // u a small step from v into the wedge: halve the step until every face of u is valid.
     double reach = 4.0;
@@ -369,7 +412,14 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
       for (int c : dm.faces[f])
         if (std::find(relax_list.begin(), relax_list.end(), c) == relax_list.end()) relax_list.push_back(c);
     for (int round = 0; round < relax_rounds; ++round)
-      for (int w : relax_list) relax_vertex(dm, x, w);
+      for (int w : relax_list) relax_vertex(dm, weight, x, w);
+    const std::size_t live = mesh.positions.size() - step;
+    if (live >= next_sweep) {
+      next_sweep *= 2;
+      for (int round = 0; round < 4 * relax_rounds; ++round)
+        for (std::size_t w = 0; w < mesh.positions.size(); ++w)
+          if (dm.vertex_alive[w]) relax_vertex(dm, weight, x, static_cast<int>(w));
+    }
   }
   (void)adjacency;
   result.sphere = std::move(x);

@@ -15,12 +15,19 @@ namespace fascicle {
 
 const char* to_string(SphereMethod method) { return method == SphereMethod::relax ? "relax" : "tutte"; }
 
-const char* to_string(SphereStart start) { return start == SphereStart::progressive ? "progressive" : "automatic"; }
+const char* to_string(SphereStart start) {
+  switch (start) {
+    case SphereStart::tube: return "tube";
+    case SphereStart::progressive: return "progressive";
+    case SphereStart::stereographic: return "stereographic";
+    default: return "automatic";
+  }
+}
 
 SphereStart sphere_start_from_string(const std::string& name) {
-  if (name == "automatic") return SphereStart::automatic;
-  if (name == "progressive") return SphereStart::progressive;
-  throw OptionError("--sphere-start: '" + name + "' is not a start (use automatic or progressive)");
+  for (SphereStart s : {SphereStart::automatic, SphereStart::tube, SphereStart::progressive, SphereStart::stereographic})
+    if (name == to_string(s)) return s;
+  throw OptionError("--sphere-start: '" + name + "' is not a start (use automatic, tube, progressive or stereographic)");
 }
 
 SphereMethod sphere_method_from_string(const std::string& name) {
@@ -94,8 +101,8 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
   report.method = to_string(options.method);
   if (options.method == SphereMethod::tutte) {
     const std::vector<double> shares = detail::area_shares(mesh);
-    // Long shapes start from the tube map, round ones from the stereographic Tutte lift; if the
-    // first is not a bijection after untangling, the other is tried and the better one kept.
+    // Long shapes start from the tube map, round ones from the progressive-mesh embedding; if the
+    // first is not a bijection after untangling, the others are tried and the best one kept.
     std::array<int, 2> ends{};
     const double elongation = detail::elongation(mesh, adjacency, ends);
     report.elongation = elongation;
@@ -105,52 +112,59 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     long best_bad = -1;
     // Starts in order of preference; the first without a bad triangle wins, else the one with
     // the fewest.
-    enum class Start { prism, lambert, stereographic };
-    const std::vector<Start> starts = tube_first ? std::vector<Start>{Start::prism, Start::lambert, Start::stereographic}
-                                                 : std::vector<Start>{Start::stereographic, Start::prism, Start::lambert};
+    enum class Start { prism, lambert, progressive, stereographic };
+    const std::vector<Start> starts = [&]() -> std::vector<Start> {
+      switch (options.start) {
+        case SphereStart::tube: return {Start::prism, Start::lambert};
+        case SphereStart::progressive: return {Start::progressive};
+        case SphereStart::stereographic: return {Start::stereographic};
+        default: break;
+      }
+      if (tube_first) return {Start::prism, Start::lambert, Start::progressive, Start::stereographic};
+      return {Start::progressive, Start::prism, Start::lambert, Start::stereographic};
+    }();
     std::vector<double> scale(mesh.triangles.size(), 1.0);
-    const std::vector<Eigen::Vector2d> uv = tube_embedder.valid() && options.start == SphereStart::automatic
-                                                ? tube_embedder.solve()
-                                                : std::vector<Eigen::Vector2d>{};
+    std::vector<Eigen::Vector2d> uv;
     detail::TubeFold best_fold = detail::TubeFold::prism;
-    if (options.start == SphereStart::automatic)
-      for (const Start start_kind : starts) {
-        const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
-        detail::TutteLift lift = start_kind == Start::stereographic
-                                     ? detail::tutte_lift(mesh, adjacency, options.anisotropic)
-                                     : tube_embedder.lift(uv, fold);
+    for (const Start start_kind : starts) {
+      detail::TutteLift lift;
+      long bad = 0;
+      const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
+      if (start_kind == Start::progressive) {
+        // Bijective by construction: no untangling; a triangle counts as bad only if precision
+        // ran out (then the other starts are tried).
+        detail::ProgressiveResult progressive = detail::progressive_embedding(
+            mesh, adjacency, options.progressive_max_valence, options.progressive_relax_rounds);
+        lift.sphere = std::move(progressive.sphere);
+        lift.kind = "progressive";
+        for (const Triangle& t : mesh.triangles)
+          if (!(detail::sphere_triangle_area(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]) > degenerate_area))
+            ++bad;
+        report.starts_tried.push_back("progressive");
+      } else {
+        if (start_kind == Start::stereographic) {
+          lift = detail::tutte_lift(mesh, adjacency, options.anisotropic);
+          lift.kind = "stereographic";
+        } else {
+          if (!tube_embedder.valid()) continue;
+          if (uv.empty()) uv = tube_embedder.solve();
+          lift = tube_embedder.lift(uv, fold);
+        }
         if (lift.sphere.empty()) continue;
-        if (start_kind == Start::stereographic) lift.kind = "stereographic";
         report.starts_tried.push_back(start_kind == Start::stereographic ? "stereographic"
                                       : start_kind == Start::prism       ? "tube-prism"
                                                                          : "tube-lambert");
-        long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+        bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
         if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
-        if (best_bad < 0 || bad < best_bad) {
-          best = std::move(lift);
-          best_bad = bad;
-          best_fold = fold;
-        }
-        if (best_bad == 0) break;
       }
-    // Progressive-mesh start (guaranteed): when forced, or when no other start gave a bijection.
-    if (options.start == SphereStart::progressive || best_bad != 0) {
-      report.starts_tried.push_back("progressive");
-      detail::ProgressiveResult progressive =
-          detail::progressive_embedding(mesh, adjacency, options.progressive_max_valence, options.progressive_relax_rounds);
-      long bad = 0;
-      for (const Triangle& t : mesh.triangles) {
-        const Vec3 &a = progressive.sphere[t[0]], &b = progressive.sphere[t[1]], &c = progressive.sphere[t[2]];
-        if (!(detail::sphere_det(a, b, c) > 0.0)) ++bad;
-      }
-      if (best_bad < 0 || bad <= best_bad) {
-        best.sphere = std::move(progressive.sphere);
-        best.kind = "progressive";
-        best.cut_face = -1;
-        best.margin = 0.0;
+      if (best_bad < 0 || bad < best_bad) {
+        best = std::move(lift);
         best_bad = bad;
+        best_fold = fold;
       }
+      if (best_bad == 0) break;
     }
+    FASCICLE_CHECK(!best.sphere.empty(), "a sphere start was computed");
     // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
     // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
     // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
@@ -192,8 +206,9 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     report.lift_margin = best.margin;
     map.positions = std::move(best.sphere);
     // The tube map is area-centred by construction (equal-area lift of an arc-length layout);
-    // the stereographic and progressive starts need the Moebius centring.
-    if (report.initial_map != "tube")
+    // the progressive start is area-weighted from its tetrahedron on (measured: centring changes
+    // nothing after it); the stereographic start needs the Moebius centring.
+    if (report.initial_map == "stereographic")
       report.mobius_steps = detail::mobius_center(mesh, shares, map.positions, options.mobius_steps,
                                                   options.mobius_tolerance, report.mobius_residual);
     report.iterations = detail::balance_areas(mesh, adjacency, shares, map.positions, options.balance_sweeps,

@@ -53,15 +53,17 @@ enum class SphereMethod {
 
 /// Initial map of the `tutte` method.
 enum class SphereStart {
-  automatic,    ///< tube or stereographic by elongation, then the other, then progressive (default)
-  progressive,  ///< only the progressive-mesh start (collapse to a tetrahedron, split back)
+  automatic,      ///< long shapes: tube, then progressive; round ones: progressive first (default)
+  tube,           ///< only the tube map (prism fold, then Lambert fold)
+  progressive,    ///< only the progressive-mesh start (collapse to a tetrahedron, split back)
+  stereographic,  ///< only the stereographic Tutte lift
 };
 
 /// "tutte" or "relax".
 const char* to_string(SphereMethod method);
-/// "automatic" or "progressive".
+/// "automatic", "tube", "progressive" or "stereographic".
 const char* to_string(SphereStart start);
-/// Parses "automatic" / "progressive"; throws OptionError naming `--sphere-start` otherwise.
+/// Parses the names of to_string(SphereStart); throws OptionError naming `--sphere-start` otherwise.
 SphereStart sphere_start_from_string(const std::string& name);
 /// Parses "tutte" / "relax"; throws OptionError naming `--sphere-method` otherwise.
 SphereMethod sphere_method_from_string(const std::string& name);
@@ -72,9 +74,12 @@ struct SphereMapOptions {
   SphereMethod method = SphereMethod::tutte;
 
   // --- tutte ---
-  /// Initial map (default automatic: the tube or stereographic start, and the progressive-mesh
-  /// start only when neither of those gives a bijection after untangling; progressive: that
-  /// start alone, which is bijective by construction but balances areas less well on long shapes).
+  /// Initial map (default automatic: shapes more elongated than `tube_elongation` start from
+  /// the tube map (prism fold, then Lambert fold), then the progressive-mesh start when those
+  /// are not bijective after untangling; round shapes start from the progressive-mesh start;
+  /// the stereographic lift comes last. The progressive start is bijective by construction; on
+  /// long muscles the tube start with reweighting balances areas better (docs/BENCHMARKS.md).
+  /// The other values force one start, for comparisons.
   SphereStart start = SphereStart::automatic;
   /// Progressive start: largest valence a collapse may give the vertex it keeps, while other
   /// edges can still be collapsed (default 12; raised step by step when none can). Low valences keep the
@@ -89,9 +94,10 @@ struct SphereMapOptions {
   /// exponentially towards their ends (a conformal map of a 50:1 tube spans e^-100).
   bool anisotropic = true;
   /// Meshes more elongated than this ((end-to-end edge distance)^2 / area; 0.8 for a sphere,
-  /// 16 for a 50:1 capsule) start from the tube map instead of the stereographic lift
-  /// (default 1.0, measured on the corpus: below it the stereographic start balances areas
-  /// better, above it the tube start). Either way the other start is tried when the first is not a bijection.
+  /// 16 for a 50:1 capsule) start from the tube map instead of the progressive start (default
+  /// 1.0, measured on the corpus with the stereographic start it used to choose between: below it
+  /// the tube start balances areas worse). Either way the other starts are tried when the first
+  /// is not a bijection.
   double tube_elongation = 1.0;
   /// Tutte reweighting rounds after a tube start (default 8): edge weights times the geometric
   /// mean of (area ratio)^reweight_exponent of their faces, kept while the mean |log area ratio|

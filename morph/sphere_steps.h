@@ -112,6 +112,9 @@ struct CollapseSequence {
   std::vector<int> removed, kept;
   std::vector<std::array<int, 2>> dead;
   std::vector<int> moved_start, moved;  ///< CSR: faces that changed corner in each collapse
+  /// Faces that take over the area of each collapse's dead faces: dead[i][k] gives half of its
+  /// area to receivers[i][2k] (across its edge removed-o) and half to receivers[i][2k+1] (across kept-o).
+  std::vector<std::array<int, 4>> receivers;
   std::array<int, 4> base{};            ///< the tetrahedron's vertices
   std::array<int, 4> base_faces{};      ///< and its faces
 };
