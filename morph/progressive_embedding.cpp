@@ -221,7 +221,7 @@ CollapseSequence collapse_to_tetrahedron(const TriangleMesh& mesh, const MeshAdj
       }
     }
   };
-  (void)adjacency;
+  (void)adjacency;  // the topology was checked by the caller; the collapses use their own lists
   push_all();
   int limit = max_valence;
   long since_rebuild = 0;
@@ -421,7 +421,6 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
           if (dm.vertex_alive[w]) relax_vertex(dm, weight, x, static_cast<int>(w));
     }
   }
-  (void)adjacency;
   result.sphere = std::move(x);
   return result;
 }

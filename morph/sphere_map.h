@@ -6,31 +6,34 @@
 /// once (the spherical areas add up to 4 pi). Pipeline step 3 of ../shared/docs/METHOD.md.
 ///
 /// Two methods, selectable so they can be compared on the same mesh:
-///  - `tutte` (default): a Tutte embedding (Floater 2003, "One-to-one piecewise linear mappings
-///    over triangulations": positive weights + convex boundary give a one-to-one planar map)
-///    carried to the sphere, from one of two starts:
-///    * stereographic (round muscles, elongation <= `tube_elongation`): one triangle cut out, the
-///      disk embedded in an equilateral triangle with positive (clamped) cotangent weights, lifted
-///      by inverse stereographic projection with an origin and scale chosen so that every
-///      geodesic triangle keeps its planar orientation (a power-of-a-point condition, checked),
-///      then Moebius-centred (conformal barycentre of the surface-area measure). Bijective by
-///      construction, but a long shape crowds towards its ends by exp(-2 pi length/circumference),
-///      beyond double precision for a 50:1 tube;
-///    * tube (long muscles): the mesh cut along a shortest path between its two far ends, the disk
-///      embedded in a convex hexagon whose sides are the cut's two banks, the hexagon folded onto
-///      a capped prism (each piece affinely) and projected centrally; Lambert's cylindrical
-///      equal-area projection is the second fold. Orientation is kept exactly inside each piece;
-///      triangles across a fold or near the poles may flip.
-///    Every start is checked with exact predicates, locally untangled (smoothing, then Tutte
-///    re-embedding of bad clusters in a gnomonic chart) and the next start is tried while bad
-///    triangles remain. A tube start is then re-embedded with edge weights scaled by the area
-///    ratios (each round again a Tutte embedding), and the areas are balanced by a Gauss-Seidel
-///    Newton relaxation of sum_t a_t^2 / det_t that refuses (halves) every step that would make a
-///    triangle flip or degenerate. The report states whether the result is a bijection; on the
-///    corpus 45 of 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map"). The two that are
-///    not (LHDL psoas, opendihu biceps) have, next to one end, flat planar slivers spanning a
-///    large part of the circumference; every lift that bends planar lines into latitude circles
-///    turns them over, and local untangling does not recover them.
+///  - `tutte` (default): an initial bijective map, then flip-free area balancing. Starts:
+///    * tube (long muscles, elongation > `tube_elongation`): the mesh cut along a shortest path
+///      between its two far ends, the disk embedded by Tutte's method (Floater 2003, "One-to-one
+///      piecewise linear mappings over triangulations": positive weights + convex boundary give a
+///      one-to-one planar map) in a convex hexagon whose sides are the cut's two banks, the
+///      hexagon folded onto a capped prism (each piece affinely) and projected centrally;
+///      Lambert's cylindrical equal-area projection is the second fold. Orientation is kept
+///      exactly inside each piece; triangles across a fold or near the poles may flip, and do
+///      where flat planar slivers span much of the circumference next to an end (LHDL psoas,
+///      opendihu biceps): every lift that bends planar lines into latitude circles turns them over;
+///    * progressive (round muscles first, and the fallback of long ones): progressive-mesh
+///      embedding (Shapiro and Tal 1998, "Polyhedron realization for shape transformation";
+///      Praun and Hoppe 2003, "Spherical parametrization and remeshing"): half-edge collapses
+///      that keep a closed genus-0 manifold down to a tetrahedron, then vertex splits in reverse
+///      order, each new vertex placed inside the kernel of its ring and its neighbourhood relaxed
+///      by flip-free moves towards the areas the faces stand for. Bijective by construction;
+///    * stereographic (last resort, or forced): one triangle cut out, the disk Tutte-embedded in
+///      an equilateral triangle, lifted by inverse stereographic projection with an origin and
+///      scale that keep every geodesic triangle's orientation (a power-of-a-point condition,
+///      checked), then Moebius-centred. Bijective in exact arithmetic, but a long shape crowds
+///      towards its ends by exp(-2 pi length/circumference), beyond double precision.
+///    Every Tutte start is checked, locally untangled (smoothing, then Tutte re-embedding of bad
+///    clusters in a gnomonic chart) and the next start is tried while bad triangles remain. A tube
+///    start is then re-embedded with edge weights scaled by the area ratios (each round again a
+///    Tutte embedding), and the areas are balanced by a Gauss-Seidel Newton relaxation of
+///    sum_t a_t^2 / det_t that refuses (halves) every step that would make a triangle flip or
+///    degenerate. The report states which starts were tried and whether the result is a
+///    bijection; on the corpus all 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map").
 ///  - `relax`: the thesis's method (Zeleny 2011, ch. 6.3, after Alexa 2000): Ritter bounding
 ///    sphere, centre moved inside by an exact inside test, projection by normalisation, random
 ///    tetrahedron anchors, centroid relaxation with renormalisation, collapse check, orientation
@@ -86,7 +89,11 @@ struct SphereMapOptions {
   /// coarse levels free of fans of thin triangles.
   int progressive_max_valence = 12;
   /// Progressive start: rounds of flip-free local relaxation of the new vertex, its partner and
-  /// their ring after each vertex split (default 2; 0 leaves each new vertex where it was split off).
+  /// their ring after each vertex split, and 4 x as many sweeps over all vertices each time the
+  /// vertex count doubles (default 2; measured on a noisy 60:1 capsule of 97k vertices: level
+  /// sweeps 0 / 2 / 5 / 8 / 10 gave mean |log area ratio| 1.05 / 0.65 / 0.44 / 0.37 / 0.34 after
+  /// balancing, and 2 degenerate triangles with 0;
+  /// 0 leaves each new vertex where it was split off).
   int progressive_relax_rounds = 2;
   /// Raise the Tutte weights of edges along the muscle's local long direction by k^2, with
   /// k = (end-to-end edge distance)^2 / area, about length / circumference (default true). Any

@@ -142,8 +142,11 @@ struct ProgressiveResult {
 /// tetrahedron (collapse_to_tetrahedron), place it regular on the sphere, split the vertices back
 /// in reverse order, each new vertex a small step from the vertex it was collapsed into, inside
 /// the wedge of the faces it takes over (step halved until every new triangle is robustly
-/// positive), then `relax_rounds` rounds of flip-free local Newton moves of sum 1 / det on the
-/// new vertex, its partner and their ring, so that no triangle is crowded towards degeneracy.
+/// positive), then `relax_rounds` rounds of flip-free local Newton moves of sum w_f^2 / det_f on
+/// the new vertex, its partner and their ring (w_f: the surface area face f stands for at that
+/// level, its own plus what the collapses' dead faces handed to it), and 4 x relax_rounds sweeps
+/// over all vertices whenever the vertex count doubles, so that no triangle is crowded towards
+/// degeneracy and areas are roughly balanced from the coarse levels on.
 /// Every accepted state is a bijection (det is linear in the unnormalised point, so a move whose
 /// end keeps every det positive keeps it positive all the way).
 ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdjacency& adjacency, int max_valence,
