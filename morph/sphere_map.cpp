@@ -126,6 +126,44 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     std::vector<double> scale(mesh.triangles.size(), 1.0);
     std::vector<Eigen::Vector2d> uv;
     detail::TubeFold best_fold = detail::TubeFold::prism;
+    // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
+    // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
+    // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
+    // positive weights, hence bijective in the plane; a round is kept only when the lifted map
+    // has no more bad triangles and a lower mean |log area ratio|. They run once the tube folds
+    // are done, before any other start: they often clear the folds' last bad triangles.
+    auto reweight_tube = [&]() {
+      if (best.kind != "tube" || options.reweight_rounds <= 0) return;
+      auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
+        double sum = 0.0;
+        for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+          const Triangle& t = mesh.triangles[f];
+          const double r = detail::sphere_triangle_area(x[t[0]], x[t[1]], x[t[2]]) / (4.0 * M_PI) / shares[f];
+          if (ratio) (*ratio)[f] = r;
+          sum += std::abs(std::log(std::max(r, 1e-300)));
+        }
+        return sum / static_cast<double>(mesh.triangles.size());
+      };
+      std::vector<double> ratio(mesh.triangles.size());
+      double current = log_mean(best.sphere, &ratio);
+      for (int round = 0; round < options.reweight_rounds && current > options.reweight_target; ++round) {
+        for (std::size_t f = 0; f < scale.size(); ++f)
+          scale[f] = std::clamp(scale[f] * std::pow(std::max(ratio[f], 1e-12), options.reweight_exponent), 1e-8, 1e8);
+        detail::TutteLift next = tube_embedder.lift(tube_embedder.solve(&scale), best_fold);
+        long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
+        if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, next.sphere, 12);
+        std::vector<double> next_ratio(mesh.triangles.size());
+        const double value = log_mean(next.sphere, &next_ratio);
+        // Better means fewer bad triangles, or as few and less distortion.
+        if (bad > best_bad || (bad == best_bad && !(value < current))) break;
+        best_bad = bad;
+        ++report.reweight_rounds;
+        current = value;
+        ratio.swap(next_ratio);
+        best = std::move(next);
+      }
+    };
+    bool reweighted = false;
     for (const Start start_kind : starts) {
       detail::TutteLift lift;
       long bad = 0;
@@ -162,44 +200,13 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
         best_bad = bad;
         best_fold = fold;
       }
+      if (!reweighted && (start_kind == Start::lambert || best_bad == 0) && best.kind == "tube") {
+        reweight_tube();
+        reweighted = true;
+      }
       if (best_bad == 0) break;
     }
     FASCICLE_CHECK(!best.sphere.empty(), "a sphere start was computed");
-    // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
-    // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
-    // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
-    // positive weights, hence bijective in the plane; a round is kept only when the lifted map
-    // has no bad triangle and a lower mean |log area ratio|.
-    if (best.kind == "tube" && options.reweight_rounds > 0) {
-      auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
-        double sum = 0.0;
-        for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
-          const Triangle& t = mesh.triangles[f];
-          const double r = detail::sphere_triangle_area(x[t[0]], x[t[1]], x[t[2]]) / (4.0 * M_PI) / shares[f];
-          if (ratio) (*ratio)[f] = r;
-          sum += std::abs(std::log(std::max(r, 1e-300)));
-        }
-        return sum / static_cast<double>(mesh.triangles.size());
-      };
-      std::vector<double> ratio(mesh.triangles.size());
-      double current = log_mean(best.sphere, &ratio);
-      for (int round = 0; round < options.reweight_rounds && current > options.reweight_target; ++round) {
-        for (std::size_t f = 0; f < scale.size(); ++f)
-          scale[f] = std::clamp(scale[f] * std::pow(std::max(ratio[f], 1e-12), options.reweight_exponent), 1e-8, 1e8);
-        detail::TutteLift next = tube_embedder.lift(tube_embedder.solve(&scale), best_fold);
-        long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
-        if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, next.sphere, 12);
-        std::vector<double> next_ratio(mesh.triangles.size());
-        const double value = log_mean(next.sphere, &next_ratio);
-        // Better means fewer bad triangles, or as few and less distortion.
-        if (bad > best_bad || (bad == best_bad && !(value < current))) break;
-        best_bad = bad;
-        ++report.reweight_rounds;
-        current = value;
-        ratio.swap(next_ratio);
-        best = std::move(next);
-      }
-    }
     report.solve_seconds = since(start);
     report.initial_map = best.kind;
     report.cut_face = best.cut_face;
