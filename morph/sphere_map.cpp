@@ -15,6 +15,21 @@ namespace fascicle {
 
 const char* to_string(SphereMethod method) { return method == SphereMethod::relax ? "relax" : "tutte"; }
 
+const char* to_string(SphereStart start) {
+  switch (start) {
+    case SphereStart::tube: return "tube";
+    case SphereStart::progressive: return "progressive";
+    case SphereStart::stereographic: return "stereographic";
+    default: return "automatic";
+  }
+}
+
+SphereStart sphere_start_from_string(const std::string& name) {
+  for (SphereStart s : {SphereStart::automatic, SphereStart::tube, SphereStart::progressive, SphereStart::stereographic})
+    if (name == to_string(s)) return s;
+  throw OptionError("--sphere-start: '" + name + "' is not a start (use automatic, tube, progressive or stereographic)");
+}
+
 SphereMethod sphere_method_from_string(const std::string& name) {
   if (name == "tutte") return SphereMethod::tutte;
   if (name == "relax") return SphereMethod::relax;
@@ -40,6 +55,10 @@ void SphereMapOptions::validate() const {
     bad("reweight_exponent", std::to_string(reweight_exponent), "must be in (0, 2]");
   if (!(reweight_target >= 0.0)) bad("reweight_target", std::to_string(reweight_target), "must be >= 0");
   if (reweight_rounds < 0) bad("reweight_rounds", std::to_string(reweight_rounds), "must be >= 0");
+  if (progressive_max_valence < 6)
+    bad("progressive_max_valence", std::to_string(progressive_max_valence), "must be >= 6");
+  if (progressive_relax_rounds < 0)
+    bad("progressive_relax_rounds", std::to_string(progressive_relax_rounds), "must be >= 0");
   if (untangle_sweeps < 0) bad("untangle_sweeps", std::to_string(untangle_sweeps), "must be >= 0");
   if (relax_threshold_lowerings < 0)
     bad("relax_threshold_lowerings", std::to_string(relax_threshold_lowerings), "must be >= 0");
@@ -54,6 +73,7 @@ nlohmann::json SphereMapReport::to_json() const {
                    {"seconds", seconds}};
   if (method == "tutte") {
     j["initial_map"] = initial_map;
+    j["starts_tried"] = starts_tried;
     j["elongation"] = elongation;
     j["reweight_rounds"] = reweight_rounds;
     j["cut_face"] = cut_face;
@@ -81,8 +101,8 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
   report.method = to_string(options.method);
   if (options.method == SphereMethod::tutte) {
     const std::vector<double> shares = detail::area_shares(mesh);
-    // Long shapes start from the tube map, round ones from the stereographic Tutte lift; if the
-    // first is not a bijection after untangling, the other is tried and the better one kept.
+    // Long shapes start from the tube map, round ones from the progressive-mesh embedding; if the
+    // first is not a bijection after untangling, the others are tried and the best one kept.
     std::array<int, 2> ends{};
     const double elongation = detail::elongation(mesh, adjacency, ends);
     report.elongation = elongation;
@@ -92,34 +112,28 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     long best_bad = -1;
     // Starts in order of preference; the first without a bad triangle wins, else the one with
     // the fewest.
-    enum class Start { prism, lambert, stereographic };
-    const std::vector<Start> starts = tube_first ? std::vector<Start>{Start::prism, Start::lambert, Start::stereographic}
-                                                 : std::vector<Start>{Start::stereographic, Start::prism, Start::lambert};
-    std::vector<double> scale(mesh.triangles.size(), 1.0);
-    const std::vector<Eigen::Vector2d> uv = tube_embedder.valid() ? tube_embedder.solve() : std::vector<Eigen::Vector2d>{};
-    detail::TubeFold best_fold = detail::TubeFold::prism;
-    for (const Start start_kind : starts) {
-      const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
-      detail::TutteLift lift = start_kind == Start::stereographic
-                                   ? detail::tutte_lift(mesh, adjacency, options.anisotropic)
-                                   : tube_embedder.lift(uv, fold);
-      if (lift.sphere.empty()) continue;
-      if (start_kind == Start::stereographic) lift.kind = "stereographic";
-      long bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
-      if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
-      if (best_bad < 0 || bad < best_bad) {
-        best = std::move(lift);
-        best_bad = bad;
-        best_fold = fold;
+    enum class Start { prism, lambert, progressive, stereographic };
+    const std::vector<Start> starts = [&]() -> std::vector<Start> {
+      switch (options.start) {
+        case SphereStart::tube: return {Start::prism, Start::lambert};
+        case SphereStart::progressive: return {Start::progressive};
+        case SphereStart::stereographic: return {Start::stereographic};
+        default: break;
       }
-      if (best_bad == 0) break;
-    }
+      if (tube_first) return {Start::prism, Start::lambert, Start::progressive, Start::stereographic};
+      return {Start::progressive, Start::prism, Start::lambert, Start::stereographic};
+    }();
+    std::vector<double> scale(mesh.triangles.size(), 1.0);
+    std::vector<Eigen::Vector2d> uv;
+    detail::TubeFold best_fold = detail::TubeFold::prism;
     // Reweighting rounds (tube start): every edge's Tutte weight is multiplied by the geometric
     // mean of (spherical share / surface share)^exponent of its faces, so crowded regions pull less
     // and grow, spread ones pull more and shrink; each round is again a Tutte embedding with
     // positive weights, hence bijective in the plane; a round is kept only when the lifted map
-    // has no bad triangle and a lower mean |log area ratio|.
-    if (best.kind != "stereographic" && options.reweight_rounds > 0) {
+    // has no more bad triangles and a lower mean |log area ratio|. They run once the tube folds
+    // are done, before any other start: they often clear the folds' last bad triangles.
+    auto reweight_tube = [&]() {
+      if (best.kind != "tube" || options.reweight_rounds <= 0) return;
       auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
         double sum = 0.0;
         for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
@@ -148,14 +162,59 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
         ratio.swap(next_ratio);
         best = std::move(next);
       }
+    };
+    bool reweighted = false;
+    for (const Start start_kind : starts) {
+      detail::TutteLift lift;
+      long bad = 0;
+      const detail::TubeFold fold = start_kind == Start::lambert ? detail::TubeFold::lambert : detail::TubeFold::prism;
+      if (start_kind == Start::progressive) {
+        // Bijective by construction: no untangling; a triangle counts as bad only if precision
+        // ran out (then the other starts are tried).
+        detail::ProgressiveResult progressive = detail::progressive_embedding(
+            mesh, adjacency, options.progressive_max_valence, options.progressive_relax_rounds);
+        lift.sphere = std::move(progressive.sphere);
+        lift.kind = "progressive";
+        for (const Triangle& t : mesh.triangles)
+          if (!(detail::sphere_triangle_area(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]) > degenerate_area))
+            ++bad;
+        report.starts_tried.push_back("progressive");
+      } else {
+        if (start_kind == Start::stereographic) {
+          lift = detail::tutte_lift(mesh, adjacency, options.anisotropic);
+          lift.kind = "stereographic";
+        } else {
+          if (!tube_embedder.valid()) continue;
+          if (uv.empty()) uv = tube_embedder.solve();
+          lift = tube_embedder.lift(uv, fold);
+        }
+        if (lift.sphere.empty()) continue;
+        report.starts_tried.push_back(start_kind == Start::stereographic ? "stereographic"
+                                      : start_kind == Start::prism       ? "tube-prism"
+                                                                         : "tube-lambert");
+        bad = detail::untangle(mesh, adjacency, lift.sphere, options.untangle_sweeps);
+        if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, lift.sphere, 12);
+      }
+      if (best_bad < 0 || bad < best_bad) {
+        best = std::move(lift);
+        best_bad = bad;
+        best_fold = fold;
+      }
+      if (!reweighted && (start_kind == Start::lambert || best_bad == 0) && best.kind == "tube") {
+        reweight_tube();
+        reweighted = true;
+      }
+      if (best_bad == 0) break;
     }
+    FASCICLE_CHECK(!best.sphere.empty(), "a sphere start was computed");
     report.solve_seconds = since(start);
     report.initial_map = best.kind;
     report.cut_face = best.cut_face;
     report.lift_margin = best.margin;
     map.positions = std::move(best.sphere);
     // The tube map is area-centred by construction (equal-area lift of an arc-length layout);
-    // the stereographic start needs the Moebius centring.
+    // the progressive start is area-weighted from its tetrahedron on (measured: centring changes
+    // nothing after it); the stereographic start needs the Moebius centring.
     if (report.initial_map == "stereographic")
       report.mobius_steps = detail::mobius_center(mesh, shares, map.positions, options.mobius_steps,
                                                   options.mobius_tolerance, report.mobius_residual);

@@ -6,31 +6,34 @@
 /// once (the spherical areas add up to 4 pi). Pipeline step 3 of ../shared/docs/METHOD.md.
 ///
 /// Two methods, selectable so they can be compared on the same mesh:
-///  - `tutte` (default): a Tutte embedding (Floater 2003, "One-to-one piecewise linear mappings
-///    over triangulations": positive weights + convex boundary give a one-to-one planar map)
-///    carried to the sphere, from one of two starts:
-///    * stereographic (round muscles, elongation <= `tube_elongation`): one triangle cut out, the
-///      disk embedded in an equilateral triangle with positive (clamped) cotangent weights, lifted
-///      by inverse stereographic projection with an origin and scale chosen so that every
-///      geodesic triangle keeps its planar orientation (a power-of-a-point condition, checked),
-///      then Moebius-centred (conformal barycentre of the surface-area measure). Bijective by
-///      construction, but a long shape crowds towards its ends by exp(-2 pi length/circumference),
-///      beyond double precision for a 50:1 tube;
-///    * tube (long muscles): the mesh cut along a shortest path between its two far ends, the disk
-///      embedded in a convex hexagon whose sides are the cut's two banks, the hexagon folded onto
-///      a capped prism (each piece affinely) and projected centrally; Lambert's cylindrical
-///      equal-area projection is the second fold. Orientation is kept exactly inside each piece;
-///      triangles across a fold or near the poles may flip.
-///    Every start is checked with exact predicates, locally untangled (smoothing, then Tutte
-///    re-embedding of bad clusters in a gnomonic chart) and the next start is tried while bad
-///    triangles remain. A tube start is then re-embedded with edge weights scaled by the area
-///    ratios (each round again a Tutte embedding), and the areas are balanced by a Gauss-Seidel
-///    Newton relaxation of sum_t a_t^2 / det_t that refuses (halves) every step that would make a
-///    triangle flip or degenerate. The report states whether the result is a bijection; on the
-///    corpus 45 of 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map"). The two that are
-///    not (LHDL psoas, opendihu biceps) have, next to one end, flat planar slivers spanning a
-///    large part of the circumference; every lift that bends planar lines into latitude circles
-///    turns them over, and local untangling does not recover them.
+///  - `tutte` (default): an initial bijective map, then flip-free area balancing. Starts:
+///    * tube (long muscles, elongation > `tube_elongation`): the mesh cut along a shortest path
+///      between its two far ends, the disk embedded by Tutte's method (Floater 2003, "One-to-one
+///      piecewise linear mappings over triangulations": positive weights + convex boundary give a
+///      one-to-one planar map) in a convex hexagon whose sides are the cut's two banks, the
+///      hexagon folded onto a capped prism (each piece affinely) and projected centrally;
+///      Lambert's cylindrical equal-area projection is the second fold. Orientation is kept
+///      exactly inside each piece; triangles across a fold or near the poles may flip, and do
+///      where flat planar slivers span much of the circumference next to an end (LHDL psoas,
+///      opendihu biceps): every lift that bends planar lines into latitude circles turns them over;
+///    * progressive (round muscles first, and the fallback of long ones): progressive-mesh
+///      embedding (Shapiro and Tal 1998, "Polyhedron realization for shape transformation";
+///      Praun and Hoppe 2003, "Spherical parametrization and remeshing"): half-edge collapses
+///      that keep a closed genus-0 manifold down to a tetrahedron, then vertex splits in reverse
+///      order, each new vertex placed inside the kernel of its ring and its neighbourhood relaxed
+///      by flip-free moves towards the areas the faces stand for. Bijective by construction;
+///    * stereographic (last resort, or forced): one triangle cut out, the disk Tutte-embedded in
+///      an equilateral triangle, lifted by inverse stereographic projection with an origin and
+///      scale that keep every geodesic triangle's orientation (a power-of-a-point condition,
+///      checked), then Moebius-centred. Bijective in exact arithmetic, but a long shape crowds
+///      towards its ends by exp(-2 pi length/circumference), beyond double precision.
+///    Every Tutte start is checked, locally untangled (smoothing, then Tutte re-embedding of bad
+///    clusters in a gnomonic chart) and the next start is tried while bad triangles remain. A tube
+///    start is then re-embedded with edge weights scaled by the area ratios (each round again a
+///    Tutte embedding), and the areas are balanced by a Gauss-Seidel Newton relaxation of
+///    sum_t a_t^2 / det_t that refuses (halves) every step that would make a triangle flip or
+///    degenerate. The report states which starts were tried and whether the result is a
+///    bijection; on the corpus all 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map").
 ///  - `relax`: the thesis's method (Zeleny 2011, ch. 6.3, after Alexa 2000): Ritter bounding
 ///    sphere, centre moved inside by an exact inside test, projection by normalisation, random
 ///    tetrahedron anchors, centroid relaxation with renormalisation, collapse check, orientation
@@ -51,8 +54,20 @@ enum class SphereMethod {
   relax,  ///< the thesis's normalise-and-relax method (may fail)
 };
 
+/// Initial map of the `tutte` method.
+enum class SphereStart {
+  automatic,      ///< long shapes: tube, then progressive; round ones: progressive first (default)
+  tube,           ///< only the tube map (prism fold, then Lambert fold)
+  progressive,    ///< only the progressive-mesh start (collapse to a tetrahedron, split back)
+  stereographic,  ///< only the stereographic Tutte lift
+};
+
 /// "tutte" or "relax".
 const char* to_string(SphereMethod method);
+/// "automatic", "tube", "progressive" or "stereographic".
+const char* to_string(SphereStart start);
+/// Parses the names of to_string(SphereStart); throws OptionError naming `--sphere-start` otherwise.
+SphereStart sphere_start_from_string(const std::string& name);
 /// Parses "tutte" / "relax"; throws OptionError naming `--sphere-method` otherwise.
 SphereMethod sphere_method_from_string(const std::string& name);
 
@@ -62,15 +77,34 @@ struct SphereMapOptions {
   SphereMethod method = SphereMethod::tutte;
 
   // --- tutte ---
+  /// Initial map (default automatic: shapes more elongated than `tube_elongation` start from
+  /// the tube map (prism fold, then Lambert fold), then the progressive-mesh start when those
+  /// are not bijective after untangling; round shapes start from the progressive-mesh start;
+  /// the stereographic lift comes last. The progressive start is bijective by construction; on
+  /// long muscles the tube start with reweighting balances areas better (docs/BENCHMARKS.md).
+  /// The other values force one start, for comparisons.
+  SphereStart start = SphereStart::automatic;
+  /// Progressive start: largest valence a collapse may give the vertex it keeps, while other
+  /// edges can still be collapsed (default 12; raised step by step when none can). Low valences keep the
+  /// coarse levels free of fans of thin triangles.
+  int progressive_max_valence = 12;
+  /// Progressive start: rounds of flip-free local relaxation of the new vertex, its partner and
+  /// their ring after each vertex split, and 4 x as many sweeps over all vertices each time the
+  /// vertex count doubles (default 2; measured on a noisy 60:1 capsule of 97k vertices: level
+  /// sweeps 0 / 2 / 5 / 8 / 10 gave mean |log area ratio| 1.05 / 0.65 / 0.44 / 0.37 / 0.34 after
+  /// balancing, and 2 degenerate triangles with 0;
+  /// 0 leaves each new vertex where it was split off).
+  int progressive_relax_rounds = 2;
   /// Raise the Tutte weights of edges along the muscle's local long direction by k^2, with
   /// k = (end-to-end edge distance)^2 / area, about length / circumference (default true). Any
   /// positive weights give a bijection; these keep long muscles from being crowded
   /// exponentially towards their ends (a conformal map of a 50:1 tube spans e^-100).
   bool anisotropic = true;
   /// Meshes more elongated than this ((end-to-end edge distance)^2 / area; 0.8 for a sphere,
-  /// 16 for a 50:1 capsule) start from the tube map instead of the stereographic lift
-  /// (default 1.0, measured on the corpus: below it the stereographic start balances areas
-  /// better, above it the tube start). Either way the other start is tried when the first is not a bijection.
+  /// 16 for a 50:1 capsule) start from the tube map instead of the progressive start (default
+  /// 1.0, measured on the corpus with the stereographic start it used to choose between: below it
+  /// the tube start balances areas worse). Either way the other starts are tried when the first
+  /// is not a bijection.
   double tube_elongation = 1.0;
   /// Tutte reweighting rounds after a tube start (default 8): edge weights times the geometric
   /// mean of (area ratio)^reweight_exponent of their faces, kept while the mean |log area ratio|
@@ -137,7 +171,8 @@ struct SphereMapReport {
   std::string status;            ///< "ok" or "failed"
   std::string failure;           ///< how it failed, empty when ok
   SphereQuality quality;
-  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut) or "tube" (cut end to end)
+  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut), "tube" (cut end to end) or "progressive"
+  std::vector<std::string> starts_tried;  ///< tutte: starts computed, in order ("tube-prism", "tube-lambert", "stereographic", "progressive")
   double elongation = 0.0;       ///< tutte: (end-to-end edge distance)^2 / area
   int reweight_rounds = 0;       ///< tutte: reweighting rounds kept after the lift
   int cut_face = -1;             ///< tutte: the triangle cut out (it covers the north pole)

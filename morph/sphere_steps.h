@@ -104,6 +104,54 @@ long untangle(const TriangleMesh& mesh, const MeshAdjacency& adjacency, std::vec
 long reembed_patches(const TriangleMesh& mesh, const MeshAdjacency& adjacency, std::vector<Vec3>& sphere,
                      int max_rings);
 
+/// Half-edge collapses that take a closed genus-0 mesh down to a tetrahedron, in order. Collapse
+/// i removes vertex removed[i] into kept[i] (which stays where it is), deletes the two faces
+/// dead[i] of the edge, and rewrites the removed corner of faces moved[moved_start[i] ..
+/// moved_start[i+1]) to kept[i]. Face ids are the mesh's own.
+struct CollapseSequence {
+  std::vector<int> removed, kept;
+  std::vector<std::array<int, 2>> dead;
+  std::vector<int> moved_start, moved;  ///< CSR: faces that changed corner in each collapse
+  /// Faces that take over the area of each collapse's dead faces: dead[i][k] gives half of its
+  /// area to receivers[i][2k] (across its edge removed-o) and half to receivers[i][2k+1] (across kept-o).
+  std::vector<std::array<int, 4>> receivers;
+  std::array<int, 4> base{};            ///< the tetrahedron's vertices
+  std::array<int, 4> base_faces{};      ///< and its faces
+};
+
+/// Simplifies `mesh` (closed, genus 0, checked by check_sphere_topology) by half-edge collapses,
+/// shortest edge first, each kept only when the link condition holds (the edge's ends share
+/// exactly the two opposite corners as neighbours), no vertex drops below valence 3, and the kept
+/// vertex's valence stays <= max_valence (raised when no edge is left under it). Every
+/// intermediate mesh is then a closed genus-0 manifold. Throws TopologyError when no edge can be
+/// collapsed before the tetrahedron (not a sphere).
+CollapseSequence collapse_to_tetrahedron(const TriangleMesh& mesh, const MeshAdjacency& adjacency, int max_valence);
+
+/// The mesh after the first `collapses` collapses of `sequence`, compacted (removed vertices
+/// dropped, indices renumbered): for checking that every level is a manifold.
+TriangleMesh collapsed_mesh(const TriangleMesh& mesh, const CollapseSequence& sequence, std::size_t collapses);
+
+/// Result of progressive_embedding.
+struct ProgressiveResult {
+  std::vector<Vec3> sphere;  ///< #V unit vectors
+  long collapses = 0;        ///< vertex splits done (= #V - 4)
+  long failed_splits = 0;    ///< splits whose new vertex found no valid place (0 unless precision ran out)
+};
+
+/// Progressive-mesh sphere embedding (Shapiro and Tal 1998; Praun and Hoppe 2003): collapse to a
+/// tetrahedron (collapse_to_tetrahedron), place it regular on the sphere, split the vertices back
+/// in reverse order, each new vertex a small step from the vertex it was collapsed into, inside
+/// the wedge of the faces it takes over (step halved until every new triangle is robustly
+/// positive), then `relax_rounds` rounds of flip-free local Newton moves of sum w_f^2 / det_f on
+/// the new vertex, its partner and their ring (w_f: the surface area face f stands for at that
+/// level, its own plus what the collapses' dead faces handed to it), and 4 x relax_rounds sweeps
+/// over all vertices whenever the vertex count doubles, so that no triangle is crowded towards
+/// degeneracy and areas are roughly balanced from the coarse levels on.
+/// Every accepted state is a bijection (det is linear in the unnormalised point, so a move whose
+/// end keeps every det positive keeps it positive all the way).
+ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdjacency& adjacency, int max_valence,
+                                        int relax_rounds);
+
 /// Moebius centring: repeatedly applies the sphere automorphism that moves the area centroid
 /// c = sum_t share_t * centroid_t towards the centre, x -> (1 - |c|^2)(x - c) / |x - c|^2 - c,
 /// halving c whenever a triangle would degenerate or shrink by more than half of what a conformal

@@ -30,7 +30,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     const nlohmann::json r = nlohmann::json::parse(in);
     INFO(path);
     if (!r.contains("quality")) {
-      // Refused before any fibre is made: only the sphere map's two known failures (issue 3).
+      // Refused before any fibre is made: none since the sphere map is bijective on all 47
+      // (issue 3); the LHDL psoas and the opendihu left biceps used to be refused here.
       CHECK(r.value("error_code", std::string()) == "solver_diverged");
       refused.insert(entry.path().filename().string());
       continue;
@@ -44,9 +45,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     unfolded += q["inverted_cells"].get<long>() == 0;
   }
   CHECK(reports == 47);
-  // At most the sphere map's two known failures (issue 3) are refused.
-  const std::set<std::string> known{"LHDL_R_M090_Psoas_smooth.415.report.json", "left_biceps_brachii.report.json"};
-  for (const std::string& name : refused) CHECK(known.count(name) == 1);
+  CHECK(refused.empty());
   // Floors, not the goal (every muscle): on 2026-11-21 with the untangling, 19 muscles passed
   // every criterion and 39 had no inverted cell (docs/BENCHMARKS.md, "Decompose").
   CHECK(passed >= 17);

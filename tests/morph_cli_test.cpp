@@ -97,6 +97,29 @@ TEST_CASE("fascicle sphere --sphere-method relax succeeds or says how it failed"
   }
 }
 
+TEST_CASE("fascicle sphere --sphere-start picks the start and reports it", "[morph][cli]") {
+  test::TempDir dir;
+  write_triangle_mesh(dir.file("in.off"), test::capsule(1.0, 30.0, 12));
+  CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("a.off") +
+                          " --sphere-start progressive --report " + dir.file("a.json")) == 0);
+  const nlohmann::json a = nlohmann::json::parse(slurp(dir.file("a.json")));
+  CHECK(a.at("status") == "ok");
+  CHECK(a.at("sphere").at("initial_map") == "progressive");
+  CHECK(a.at("sphere").at("starts_tried") == nlohmann::json::array({"progressive"}));
+  CHECK(a.at("sphere").at("quality").at("bijective") == true);
+  // The template lattice is mapped from the tube start whatever the muscle's start is.
+  CHECK(a.at("alignment").at("template").at("sphere_map").at("initial_map") == "tube");
+  CHECK(a.at("alignment").at("insertion_error_deg").get<double>() < 1.0);
+  // The default for this long capsule is the tube start.
+  CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("b.off") +
+                          " --report " + dir.file("b.json")) == 0);
+  CHECK(nlohmann::json::parse(slurp(dir.file("b.json"))).at("sphere").at("initial_map") == "tube");
+  // An unknown start is refused by the parser, and nothing is written.
+  CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("c.off") +
+                          " --sphere-start lambert 2>/dev/null") != 0);
+  CHECK_FALSE(std::ifstream(dir.file("c.off")).good());
+}
+
 TEST_CASE("the real far landmark file of the corpus is refused", "[morph][cli][corpus]") {
   FASCICLE_REQUIRE_DATA();
   const std::string lhdl = test::data_dir() + "/muscles/lhdl/";
