@@ -184,12 +184,10 @@ void add_sphere_command(CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Sphere mesh, same connectivity (off, obj, stl, ply, vtk)")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (repair, map quality, attachment centres)");
   cmd->add_option("--sphere-method", args->method, "tutte: Tutte embedding, checked bijective (default); relax: the thesis's method")
-      ->check(CLI::IsMember({"tutte", "relax"}))
       ->capture_default_str();
   cmd->add_option("--sphere-start", args->start,
                   "tutte: automatic (long shapes: tube start, progressive-mesh start when it is not bijective; "
                   "round ones: progressive; default), or one start only: tube, progressive, stereographic")
-      ->check(CLI::IsMember({"automatic", "tube", "progressive", "stereographic"}))
       ->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");

@@ -114,9 +114,11 @@ TEST_CASE("fascicle sphere --sphere-start picks the start and reports it", "[mor
   CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("b.off") +
                           " --report " + dir.file("b.json")) == 0);
   CHECK(nlohmann::json::parse(slurp(dir.file("b.json"))).at("sphere").at("initial_map") == "tube");
-  // An unknown start is refused by the parser, and nothing is written.
+  // An unknown start or method is an invalid option (exit 18), and nothing is written.
   CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("c.off") +
-                          " --sphere-start lambert 2>/dev/null") != 0);
+                          " --sphere-start lambert 2>/dev/null") == 18);
+  CHECK(test::run_command(test::program() + " -q sphere " + dir.file("in.off") + " -o " + dir.file("c.off") +
+                          " --sphere-method spin 2>/dev/null") == 18);
   CHECK_FALSE(std::ifstream(dir.file("c.off")).good());
 }
 
