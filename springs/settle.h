@@ -58,13 +58,16 @@ enum class StaticMethod {
                 ///< gradient restarts (O'Donoghue and Candes 2015), unit masses, step 1 / L
   newton,       ///< truncated Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
   local_global, ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
+  multigrid,    ///< Newton-CG preconditioned by a geometric multigrid V-cycle on the spring
+                ///< Laplacian (multigrid.h); lattices only: without a fitting LatticeShape it
+                ///< runs the momentum method (report backend "momentum-...")
 };
 /// Acceleration of the local-global method.
 enum class Acceleration { none, anderson };
 
 /// Parse helpers for the command line. Each throws OptionError naming the option and value.
 SolverKind parse_solver_kind(const std::string& name);  ///< "verlet" | "static"
-StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global"
+StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global" | "multigrid"
 Backend parse_backend(const std::string& name);         ///< "auto" | "structured" | "general"
 const char* solver_name(SolverKind kind);
 const char* backend_name(Backend backend);
@@ -93,6 +96,16 @@ struct SettleOptions {
                                                         ///< on large lattices, docs/BENCHMARKS.md)
   Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
   int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
+  double multigrid_step = 0.9;  ///< multigrid: step alpha along the V-cycle-preconditioned force,
+                                ///< in (0, 2] (default 0.9)
+  bool multigrid_harmonic_start = true;  ///< multigrid: start from the harmonic interpolation
+                                         ///< of the fixed points (the equilibrium at zero rest
+                                         ///< lengths) instead of the given free positions
+                                         ///< (default true)
+  int multigrid_smoothing_steps = 2;  ///< multigrid: Jacobi sweeps before and after each coarse
+                                      ///< correction, 1..20 (default 2)
+  int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
+                                         ///< solved directly, 8..200000 (default 4096)
 
   /// Throws OptionError naming the bad field and value.
   void validate() const;
