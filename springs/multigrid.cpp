@@ -97,13 +97,17 @@ DimMap make_map(int n, bool coarsen) {
 struct Level {
   int nx = 0, ny = 0, nz = 0;
   std::size_t points = 0;
-  // CSR rows (scalar operator); inactive rows (fixed or empty) are left out of every pass
+  // CSR rows, 3 values an entry (one operator per coordinate, same pattern); inactive rows
+  // (fixed or empty) are left out of every pass
   std::vector<std::size_t> ptr;
   std::vector<int> col;
   std::vector<double> val;
-  std::vector<double> diag_inv;  // 1 / diagonal at active rows, 0 elsewhere
-  double rho = 1.0;              // estimated spectral radius of D^-1 A
-  std::vector<double> d;         // Chebyshev update
+  // Smoother preconditioner T (per coordinate c): the tridiagonal part of A_c along grid axis
+  // axis[c] (line smoothing), or its diagonal; factored per line (Thomas): 3 values a point.
+  int axis[3] = {0, 1, 2};
+  std::vector<double> lo, cp, inv;
+  double rho[3] = {1.0, 1.0, 1.0};  // estimated spectral radius of T^-1 A per coordinate
+  std::vector<double> d, z;         // Chebyshev update, T^-1 r
   std::vector<char> active;
   std::vector<double> b, x, r;   // 3 values a point (coarse levels' right side and solution)
   DimMap mx, my, mz;             // interpolation from the next coarser level (not on the last)
@@ -137,7 +141,7 @@ struct LatticeMultigrid::Impl {
   // (V-cycle residual factors 0.13 model-6, 0.08 model-26; 0.18 and 0.17 with 8, 0.58 and 0.56 with 30)
   double chebyshev_ratio = 5.0;
   std::vector<Level> levels;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarsest;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> coarsest[3];
   bool coarsest_direct = false;
 
   // r = b - A x at active rows, 0 elsewhere.
@@ -151,10 +155,9 @@ struct LatticeMultigrid::Impl {
         double s0 = b[3 * i], s1 = b[3 * i + 1], s2 = b[3 * i + 2];
         for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
           const std::size_t j = static_cast<std::size_t>(L.col[e]);
-          const double a = L.val[e];
-          s0 -= a * x[3 * j];
-          s1 -= a * x[3 * j + 1];
-          s2 -= a * x[3 * j + 2];
+          s0 -= L.val[3 * e] * x[3 * j];
+          s1 -= L.val[3 * e + 1] * x[3 * j + 1];
+          s2 -= L.val[3 * e + 2] * x[3 * j + 2];
         }
         r[3 * i] = s0;
         r[3 * i + 1] = s1;
@@ -163,13 +166,49 @@ struct LatticeMultigrid::Impl {
     });
   }
 
-  // x += D^-1 r / rho (r = b - A x computed first: weighted Jacobi, order-independent).
+  static std::size_t stride(const Level& L, int axis) {
+    return axis == 0 ? 1 : axis == 1 ? static_cast<std::size_t>(L.nx) : static_cast<std::size_t>(L.nx) * L.ny;
+  }
+  static int extent(const Level& L, int axis) { return axis == 0 ? L.nx : axis == 1 ? L.ny : L.nz; }
+  // First point of line `line` along `axis` (lines numbered by the other two coordinates).
+  static std::size_t line_start(const Level& L, int axis, std::size_t line) {
+    if (axis == 0) return line * L.nx;
+    if (axis == 1) return (line % L.nx) + static_cast<std::size_t>(L.nx) * L.ny * (line / L.nx);
+    return line;
+  }
+
+  // z = T^-1 r, coordinate by coordinate, line by line (lines are independent: parallel).
+  static void apply_smoother(const Level& L, const double* r, double* z) {
+    for (int c = 0; c < 3; ++c) {
+      const int axis = L.axis[c];
+      const std::size_t step = stride(L, axis);
+      const int length = extent(L, axis);
+      const std::size_t lines = L.points / static_cast<std::size_t>(length);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines, 64), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t line = range.begin(); line != range.end(); ++line) {
+          const std::size_t first = line_start(L, axis, line);
+          double previous = 0.0;
+          for (int t = 0; t < length; ++t) {
+            const std::size_t k = 3 * (first + t * step) + c;
+            previous = (r[k] - L.lo[k] * previous) * L.inv[k];
+            z[k] = previous;
+          }
+          for (int t = length - 2; t >= 0; --t) {
+            const std::size_t k = 3 * (first + t * step) + c;
+            z[k] -= L.cp[k] * z[k + 3 * step];
+          }
+        }
+      });
+    }
+  }
+
+  // x += T^-1 r / rho (r = b - A x computed first: weighted line Jacobi, order-independent).
   void jacobi(Level& L, const double* b, double* x) {
     residual(L, b, x, L.r.data());
-    const double weight = 1.0 / L.rho;
+    apply_smoother(L, L.r.data(), L.z.data());
     for_rows(L.points, [&](std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i)
-        for (int c = 0; c < 3; ++c) x[3 * i + c] += weight * L.diag_inv[i] * L.r[3 * i + c];
+        for (int c = 0; c < 3; ++c) x[3 * i + c] += L.z[3 * i + c] / L.rho[c];
     });
   }
 
@@ -237,12 +276,12 @@ struct LatticeMultigrid::Impl {
       for (int s = 0; s < 200; ++s) jacobi(L, b, x);
       return;
     }
-    Eigen::MatrixXd rhs(static_cast<Eigen::Index>(L.points), 3);
-    for (std::size_t i = 0; i < L.points; ++i)
-      for (int c = 0; c < 3; ++c) rhs(static_cast<Eigen::Index>(i), c) = L.active[i] ? b[3 * i + c] : 0.0;
-    const Eigen::MatrixXd sol = coarsest.solve(rhs);
-    for (std::size_t i = 0; i < L.points; ++i)
-      for (int c = 0; c < 3; ++c) x[3 * i + c] = L.active[i] ? sol(static_cast<Eigen::Index>(i), c) : 0.0;
+    Eigen::VectorXd rhs(static_cast<Eigen::Index>(L.points));
+    for (int c = 0; c < 3; ++c) {
+      for (std::size_t i = 0; i < L.points; ++i) rhs(static_cast<Eigen::Index>(i)) = L.active[i] ? b[3 * i + c] : 0.0;
+      const Eigen::VectorXd sol = coarsest[c].solve(rhs);
+      for (std::size_t i = 0; i < L.points; ++i) x[3 * i + c] = L.active[i] ? sol(static_cast<Eigen::Index>(i)) : 0.0;
+    }
   }
 
   // Chebyshev smoother: `degree` steps of the Chebyshev iteration for D^-1 A on the interval
@@ -250,42 +289,52 @@ struct LatticeMultigrid::Impl {
   // spectrum below upper / kRatio is left to the coarse levels). A fixed polynomial in D^-1 A,
   // so the V-cycle stays symmetric. With zero_start, x is overwritten (x = 0 start).
   void smooth(Level& L, const double* b, double* x, bool zero_start) {
-    const double upper = 1.1 * L.rho, lower = upper / chebyshev_ratio;
-    const double theta = 0.5 * (upper + lower), delta = 0.5 * (upper - lower), sigma = theta / delta;
-    double rho_old = 1.0 / sigma;
+    double theta[3], delta[3], sigma[3], rho_old[3], keep[3], push[3];
+    for (int c = 0; c < 3; ++c) {
+      const double upper = 1.1 * L.rho[c], lower = upper / chebyshev_ratio;
+      theta[c] = 0.5 * (upper + lower);
+      delta[c] = 0.5 * (upper - lower);
+      sigma[c] = theta[c] / delta[c];
+      rho_old[c] = 1.0 / sigma[c];
+    }
     std::vector<double>& d = L.d;
     for (int k = 0; k < options.smoothing_steps; ++k) {
       if (k == 0 && zero_start) {
+        apply_smoother(L, b, L.z.data());
         for_rows(L.points, [&](std::size_t begin, std::size_t end) {
           for (std::size_t i = begin; i < end; ++i)
             for (int c = 0; c < 3; ++c) {
-              d[3 * i + c] = L.diag_inv[i] * b[3 * i + c] / theta;
+              d[3 * i + c] = L.z[3 * i + c] / theta[c];
               x[3 * i + c] = d[3 * i + c];
             }
         });
         continue;
       }
       residual(L, b, x, L.r.data());
+      apply_smoother(L, L.r.data(), L.z.data());
       if (k == 0) {
         for_rows(L.points, [&](std::size_t begin, std::size_t end) {
           for (std::size_t i = begin; i < end; ++i)
             for (int c = 0; c < 3; ++c) {
-              d[3 * i + c] = L.diag_inv[i] * L.r[3 * i + c] / theta;
+              d[3 * i + c] = L.z[3 * i + c] / theta[c];
               x[3 * i + c] += d[3 * i + c];
             }
         });
         continue;
       }
-      const double rho_new = 1.0 / (2.0 * sigma - rho_old);
-      const double keep = rho_new * rho_old, push = 2.0 * rho_new / delta;
+      for (int c = 0; c < 3; ++c) {
+        const double rho_new = 1.0 / (2.0 * sigma[c] - rho_old[c]);
+        keep[c] = rho_new * rho_old[c];
+        push[c] = 2.0 * rho_new / delta[c];
+        rho_old[c] = rho_new;
+      }
       for_rows(L.points, [&](std::size_t begin, std::size_t end) {
         for (std::size_t i = begin; i < end; ++i)
           for (int c = 0; c < 3; ++c) {
-            d[3 * i + c] = keep * d[3 * i + c] + push * L.diag_inv[i] * L.r[3 * i + c];
+            d[3 * i + c] = keep[c] * d[3 * i + c] + push[c] * L.z[3 * i + c];
             x[3 * i + c] += d[3 * i + c];
           }
       });
-      rho_old = rho_new;
     }
   }
 
@@ -304,48 +353,90 @@ struct LatticeMultigrid::Impl {
     smooth(L, b, x, false);
   }
 
-  // Jacobi weight 4 / (3 rho), rho = spectral radius of D^-1 A by power iteration (12 steps
-  // from a fixed pseudo-random start; capped by the Gershgorin bound).
+  // The smoother of a level: per coordinate, the grid axis whose couplings in that
+  // coordinate's operator are largest (line smoothing; else point smoothing, axis 0 with the
+  // couplings left out), the tridiagonal part of the operator along it factored line by line,
+  // and rho = spectral radius of T^-1 A by power iteration (12 steps from a fixed
+  // pseudo-random start).
   void set_smoother(Level& L) {
-    std::vector<double> diag(L.points, 0.0);
-    double gershgorin = 0.0;
-    for (std::size_t i = 0; i < L.points; ++i) {
-      if (!L.active[i]) continue;
-      double off = 0.0;
-      for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
-        if (static_cast<std::size_t>(L.col[e]) == i) diag[i] += L.val[e];
-        else off += std::abs(L.val[e]);
+    const std::size_t n = L.points;
+    L.lo.assign(3 * n, 0.0);
+    L.cp.assign(3 * n, 0.0);
+    L.inv.assign(3 * n, 0.0);
+    L.d.assign(3 * n, 0.0);
+    L.z.assign(3 * n, 0.0);
+    std::vector<double> up(3 * n, 0.0), dg(3 * n, 1.0);
+    auto coordinate = [&](std::size_t i, int axis) {
+      return axis == 0 ? static_cast<int>(i % L.nx)
+                       : axis == 1 ? static_cast<int>((i / L.nx) % L.ny)
+                                   : static_cast<int>(i / (static_cast<std::size_t>(L.nx) * L.ny));
+    };
+    for (int c = 0; c < 3; ++c) {
+      int best = 0;
+      if (options.line_smoothing) {
+        double weight[3] = {0.0, 0.0, 0.0};
+        for (std::size_t i = 0; i < n; ++i) {
+          if (!L.active[i]) continue;
+          for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e)
+            for (int a = 0; a < 3; ++a)
+              if (extent(L, a) > 1 && static_cast<std::size_t>(L.col[e]) == i + stride(L, a) &&
+                  coordinate(i, a) + 1 < extent(L, a))
+                weight[a] += std::abs(L.val[3 * e + c]);
+        }
+        for (int a = 1; a < 3; ++a)
+          if (weight[a] > weight[best]) best = a;
       }
-      if (diag[i] > 0.0) gershgorin = std::max(gershgorin, 1.0 + off / diag[i]);
+      L.axis[c] = best;
+      const std::size_t step = stride(L, best);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!L.active[i]) continue;
+        const int at = coordinate(i, best);
+        for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
+          const std::size_t j = static_cast<std::size_t>(L.col[e]);
+          if (j == i) dg[3 * i + c] = L.val[3 * e + c];
+          else if (options.line_smoothing && at > 0 && j + step == i && L.active[j]) L.lo[3 * i + c] = L.val[3 * e + c];
+          else if (options.line_smoothing && at + 1 < extent(L, best) && j == i + step && L.active[j]) up[3 * i + c] = L.val[3 * e + c];
+        }
+      }
+      // Thomas factorization of each line
+      const int length = extent(L, best);
+      const std::size_t lines = n / static_cast<std::size_t>(length);
+      for (std::size_t line = 0; line < lines; ++line) {
+        const std::size_t first = line_start(L, best, line);
+        double previous_cp = 0.0;
+        for (int t = 0; t < length; ++t) {
+          const std::size_t k = 3 * (first + t * step) + c;
+          const double denominator = dg[k] - L.lo[k] * previous_cp;
+          L.inv[k] = denominator != 0.0 ? 1.0 / denominator : 0.0;
+          L.cp[k] = up[k] * L.inv[k];
+          previous_cp = L.cp[k];
+        }
+      }
     }
-    std::vector<double> v(3 * L.points, 0.0), av(3 * L.points, 0.0), zero(3 * L.points, 0.0);
+    for (std::size_t i = 0; i < n; ++i)
+      if (!L.active[i])
+        for (int c = 0; c < 3; ++c) L.inv[3 * i + c] = L.lo[3 * i + c] = L.cp[3 * i + c] = 0.0;
+    // power iteration on T^-1 A, the three coordinates at once
+    std::vector<double> v(3 * n, 0.0), av(3 * n, 0.0), zero(3 * n, 0.0);
     std::uint64_t seed = 0x9e3779b97f4a7c15ULL;
-    for (std::size_t i = 0; i < L.points; ++i) {
+    for (std::size_t k = 0; k < 3 * n; ++k) {
       seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-      if (L.active[i]) v[3 * i] = static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5;
+      if (L.active[k / 3]) v[k] = static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5;
     }
-    double rho = 0.0;
+    double rho[3] = {0.0, 0.0, 0.0};
     for (int it = 0; it < 12; ++it) {
-      double norm = 0.0;
-      for (double value : v) norm += value * value;
-      norm = std::sqrt(norm);
-      if (!(norm > 0.0)) break;
-      for (double& value : v) value /= norm;
+      double norm[3] = {0.0, 0.0, 0.0};
+      for (std::size_t k = 0; k < 3 * n; ++k) norm[k % 3] += v[k] * v[k];
+      for (int c = 0; c < 3; ++c) norm[c] = std::sqrt(norm[c]);
+      for (std::size_t k = 0; k < 3 * n; ++k) v[k] = norm[k % 3] > 0.0 ? v[k] / norm[k % 3] : 0.0;
       residual(L, zero.data(), v.data(), av.data());  // av = -A v
-      double next = 0.0;
-      for (std::size_t i = 0; i < L.points; ++i) {
-        const double scaled = L.active[i] && diag[i] > 0.0 ? -av[3 * i] / diag[i] : 0.0;
-        v[3 * i] = scaled;
-        next += scaled * scaled;
-      }
-      rho = std::sqrt(next);
+      for (double& value : av) value = -value;
+      apply_smoother(L, av.data(), v.data());
+      double next[3] = {0.0, 0.0, 0.0};
+      for (std::size_t k = 0; k < 3 * n; ++k) next[k % 3] += v[k] * v[k];
+      for (int c = 0; c < 3; ++c) rho[c] = std::sqrt(next[c]);
     }
-    L.rho = gershgorin > 0.0 ? std::min(gershgorin / 1.1, rho) : rho;
-    if (!(L.rho > 0.0)) L.rho = 1.0;
-    L.diag_inv.assign(L.points, 0.0);
-    for (std::size_t i = 0; i < L.points; ++i)
-      if (L.active[i] && diag[i] > 0.0) L.diag_inv[i] = 1.0 / diag[i];
-    L.d.assign(3 * L.points, 0.0);
+    for (int c = 0; c < 3; ++c) L.rho[c] = rho[c] > 0.0 ? rho[c] : 1.0;
   }
 
   // Galerkin coarse level P^T A P of level `fine` (with its DimMaps set).
@@ -363,8 +454,8 @@ struct LatticeMultigrid::Impl {
     const std::size_t fplane = static_cast<std::size_t>(F.nx) * F.ny;
     bool out_of_window = false;
     tbb::parallel_for(tbb::blocked_range<int>(0, C.nz, 1), [&](const tbb::blocked_range<int>& range) {
-      std::vector<double> acc(kWindow * kWindow * kWindow, 0.0);
-      std::vector<char> used(acc.size(), 0);
+      std::vector<double> acc(3 * kWindow * kWindow * kWindow, 0.0);
+      std::vector<char> used(kWindow * kWindow * kWindow, 0);
       for (int K = range.begin(); K != range.end(); ++K) {
         auto& counts = plane_count[K];
         auto& cols = plane_col[K];
@@ -386,7 +477,7 @@ struct LatticeMultigrid::Impl {
                     if (!F.active[g]) continue;
                     const int gi = static_cast<int>(g % F.nx), gj = static_cast<int>((g / F.nx) % F.ny),
                               gk = static_cast<int>(g / fplane);
-                    const double av = w * F.val[e];
+                    const double av[3] = {w * F.val[3 * e], w * F.val[3 * e + 1], w * F.val[3 * e + 2]};
                     const int qk[2] = {mz.p0[gk], mz.p1[gk]}, qj[2] = {my.p0[gj], my.p1[gj]},
                               qi[2] = {mx.p0[gi], mx.p1[gi]};
                     const double vk[2] = {mz.w0[gk], mz.w1[gk]}, vj[2] = {my.w0[gj], my.w1[gj]},
@@ -403,7 +494,8 @@ struct LatticeMultigrid::Impl {
                             continue;
                           }
                           const int slot = dx + kWindow * (dy + kWindow * dz);
-                          acc[slot] += av * vi[u] * vj[t] * vk[s];
+                          const double pw = vi[u] * vj[t] * vk[s];
+                          for (int q = 0; q < 3; ++q) acc[3 * slot + q] += av[q] * pw;
                           used[slot] = 1;
                         }
                       }
@@ -411,12 +503,13 @@ struct LatticeMultigrid::Impl {
                   }
                 }
             std::size_t count = 0;
-            for (int slot = 0; slot < static_cast<int>(acc.size()); ++slot) {
-              if (!used[slot] || acc[slot] == 0.0) continue;
+            for (int slot = 0; slot < static_cast<int>(used.size()); ++slot) {
+              if (!used[slot] || (acc[3 * slot] == 0.0 && acc[3 * slot + 1] == 0.0 && acc[3 * slot + 2] == 0.0))
+                continue;
               const int dx = slot % kWindow - kReach, dy = (slot / kWindow) % kWindow - kReach,
                         dz = slot / (kWindow * kWindow) - kReach;
               cols.push_back((I + dx) + C.nx * ((J + dy) + C.ny * (K + dz)));
-              vals.push_back(acc[slot]);
+              for (int q = 0; q < 3; ++q) vals.push_back(acc[3 * slot + q]);
               ++count;
             }
             counts[static_cast<std::size_t>(I) + static_cast<std::size_t>(C.nx) * J] = count;
@@ -435,47 +528,58 @@ struct LatticeMultigrid::Impl {
         ++row;
       }
     C.col.reserve(C.ptr.back());
-    C.val.reserve(C.ptr.back());
+    C.val.reserve(3 * C.ptr.back());
     for (int K = 0; K < C.nz; ++K) {
       C.col.insert(C.col.end(), plane_col[K].begin(), plane_col[K].end());
       C.val.insert(C.val.end(), plane_val[K].begin(), plane_val[K].end());
     }
     for (std::size_t i = 0; i < C.points; ++i)
       for (std::size_t e = C.ptr[i]; e < C.ptr[i + 1]; ++e)
-        if (static_cast<std::size_t>(C.col[e]) == i && C.val[e] > 0.0) C.active[i] = 1;
+        if (static_cast<std::size_t>(C.col[e]) == i && C.val[3 * e] > 0.0 && C.val[3 * e + 1] > 0.0 &&
+            C.val[3 * e + 2] > 0.0)
+          C.active[i] = 1;
     return C;
   }
 
   void factor_coarsest() {
     const Level& L = levels.back();
     const auto n = static_cast<Eigen::Index>(L.points);
-    std::vector<Eigen::Triplet<double>> triplets;
-    for (std::size_t i = 0; i < L.points; ++i) {
-      if (!L.active[i]) {
-        triplets.emplace_back(static_cast<int>(i), static_cast<int>(i), 1.0);
-        continue;
+    coarsest_direct = true;
+    for (int c = 0; c < 3; ++c) {
+      std::vector<Eigen::Triplet<double>> triplets;
+      for (std::size_t i = 0; i < L.points; ++i) {
+        if (!L.active[i]) {
+          triplets.emplace_back(static_cast<int>(i), static_cast<int>(i), 1.0);
+          continue;
+        }
+        for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e)
+          if (L.active[static_cast<std::size_t>(L.col[e])])
+            triplets.emplace_back(static_cast<int>(i), L.col[e], L.val[3 * e + c]);
       }
-      for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e)
-        if (L.active[static_cast<std::size_t>(L.col[e])]) triplets.emplace_back(static_cast<int>(i), L.col[e], L.val[e]);
-    }
-    Eigen::SparseMatrix<double> matrix(n, n);
-    matrix.setFromTriplets(triplets.begin(), triplets.end());
-    coarsest.compute(matrix);
-    coarsest_direct = coarsest.info() == Eigen::Success;
-    if (coarsest_direct) {
-      // a positive definite matrix has a positive diagonal in its LDL^T
-      const auto d = coarsest.vectorD();
-      for (Eigen::Index i = 0; i < d.size(); ++i)
-        if (!(d(i) > 0.0)) coarsest_direct = false;
+      Eigen::SparseMatrix<double> matrix(n, n);
+      matrix.setFromTriplets(triplets.begin(), triplets.end());
+      coarsest[c].compute(matrix);
+      if (coarsest[c].info() != Eigen::Success) coarsest_direct = false;
+      else {
+        // a positive definite matrix has a positive diagonal in its LDL^T
+        const auto d = coarsest[c].vectorD();
+        for (Eigen::Index i = 0; i < d.size(); ++i)
+          if (!(d(i) > 0.0)) coarsest_direct = false;
+      }
     }
   }
 };
 
 LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShape& shape,
-                                   const MultigridOptions& options)
+                                   const MultigridOptions& options,
+                                   const std::vector<std::array<double, 3>>* weights)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   const std::size_t n = system.positions.size();
+  if (weights && weights->size() != system.springs.size())
+    throw OptionError("multigrid: " + std::to_string(weights->size()) + " spring weights for " +
+                      std::to_string(system.springs.size()) + " springs");
+  auto weight = [&](std::size_t s, int c) { return weights ? (*weights)[s][c] : system.springs[s].stiffness; };
   if (shape.nx < 2 || shape.ny < 2 || shape.nz < 2 ||
       static_cast<std::size_t>(shape.nx) * shape.ny * shape.nz != n || system.fixed.size() != n)
     throw OptionError("multigrid: the lattice shape " + std::to_string(shape.nx) + " x " + std::to_string(shape.ny) +
@@ -487,7 +591,7 @@ LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShap
   fine.ny = shape.ny;
   fine.nz = shape.nz;
   fine.points = n;
-  std::vector<double> diag(n, 0.0);
+  std::vector<double> diag(3 * n, 0.0);
   std::vector<std::size_t> count(n, 1);  // the diagonal entry
   const std::size_t plane = static_cast<std::size_t>(shape.nx) * shape.ny;
   auto coords = [&](int p, int* c) {
@@ -505,31 +609,42 @@ LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShap
         throw OptionError("multigrid: spring " + std::to_string(s) + " joins points " + std::to_string(spring.a) +
                           " and " + std::to_string(spring.b) + ", which are not neighbours on the lattice grid");
     const bool fa = system.fixed[spring.a] != 0, fb = system.fixed[spring.b] != 0;
-    if (!fa) diag[spring.a] += spring.stiffness;
-    if (!fb) diag[spring.b] += spring.stiffness;
+    for (int c = 0; c < 3; ++c) {
+      if (!(weight(s, c) > 0.0) || !std::isfinite(weight(s, c)))
+        throw OptionError("multigrid: spring " + std::to_string(s) + " has weight " + std::to_string(weight(s, c)) +
+                          " in coordinate " + std::to_string(c) + "; weights must be > 0");
+      if (!fa) diag[3 * static_cast<std::size_t>(spring.a) + c] += weight(s, c);
+      if (!fb) diag[3 * static_cast<std::size_t>(spring.b) + c] += weight(s, c);
+    }
     if (!fa && !fb) {
       ++count[spring.a];
       ++count[spring.b];
     }
   }
   fine.active.assign(n, 0);
-  for (std::size_t i = 0; i < n; ++i) fine.active[i] = !system.fixed[i] && diag[i] > 0.0;
+  for (std::size_t i = 0; i < n; ++i) fine.active[i] = !system.fixed[i] && diag[3 * i] > 0.0;
   fine.ptr.assign(n + 1, 0);
   for (std::size_t i = 0; i < n; ++i) fine.ptr[i + 1] = fine.ptr[i] + (fine.active[i] ? count[i] : 0);
   fine.col.resize(fine.ptr.back());
-  fine.val.resize(fine.ptr.back());
+  fine.val.resize(3 * fine.ptr.back());
   std::vector<std::size_t> fill(fine.ptr.begin(), fine.ptr.end() - 1);
   for (std::size_t i = 0; i < n; ++i)
     if (fine.active[i]) {
       fine.col[fill[i]] = static_cast<int>(i);
-      fine.val[fill[i]++] = diag[i];
+      for (int c = 0; c < 3; ++c) fine.val[3 * fill[i] + c] = diag[3 * i + c];
+      ++fill[i];
     }
-  for (const Spring& spring : system.springs) {
+  for (std::size_t s = 0; s < system.springs.size(); ++s) {
+    const Spring& spring = system.springs[s];
     if (!fine.active[spring.a] || !fine.active[spring.b]) continue;
     fine.col[fill[spring.a]] = spring.b;
-    fine.val[fill[spring.a]++] = -spring.stiffness;
     fine.col[fill[spring.b]] = spring.a;
-    fine.val[fill[spring.b]++] = -spring.stiffness;
+    for (int c = 0; c < 3; ++c) {
+      fine.val[3 * fill[spring.a] + c] = -weight(s, c);
+      fine.val[3 * fill[spring.b] + c] = -weight(s, c);
+    }
+    ++fill[spring.a];
+    ++fill[spring.b];
   }
   impl_->levels.push_back(std::move(fine));
   // coarsen while a dimension is longer than 3 and the level is larger than coarsest_points

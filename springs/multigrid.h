@@ -26,6 +26,7 @@
 #include "springs/settle.h"
 #include "springs/spring_system.h"
 
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -37,6 +38,10 @@ struct MultigridOptions {
                             ///< (default 2)
   int coarsest_points = 4096;  ///< a level with at most this many points is solved directly,
                                ///< 8..200000 (default 4096)
+  bool line_smoothing = true;  ///< smooth each coordinate line by line along the grid axis of
+                               ///< its strongest couplings (tridiagonal solves: robust when
+                               ///< springs resist one direction much more than the others);
+                               ///< false: point smoothing (default true)
   /// Throws OptionError naming the bad field and value.
   void validate() const;
 };
@@ -46,10 +51,13 @@ struct MultigridOptions {
 class LatticeMultigrid {
  public:
   /// Builds the levels for the Laplacian of `system`'s springs. `shape` must describe
-  /// `system` (nx ny nz == #points, each >= 2): else OptionError. Springs may join any two
-  /// points of the grid, though only neighbours give a sparse coarse hierarchy.
+  /// `system` (nx ny nz == #points, each >= 2) and every spring must join grid neighbours:
+  /// else OptionError. `weights`, when given (#springs, each > 0), replaces the stiffness of
+  /// spring s by weights[s][c] in the operator of coordinate c (three Laplacians on one
+  /// sparsity pattern, e.g. the diagonal of each spring's Hessian block).
   LatticeMultigrid(const SpringSystem& system, const LatticeShape& shape,
-                   const MultigridOptions& options = {});
+                   const MultigridOptions& options = {},
+                   const std::vector<std::array<double, 3>>* weights = nullptr);
   ~LatticeMultigrid();
   LatticeMultigrid(const LatticeMultigrid&) = delete;
   LatticeMultigrid& operator=(const LatticeMultigrid&) = delete;

@@ -24,6 +24,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -65,6 +67,28 @@ class MultigridSolver final : public SpringSolver {
     mg.coarsest_points = options.multigrid_coarsest_points;
     multigrid_ = std::make_unique<LatticeMultigrid>(system, shape, mg);
     if (options.multigrid_harmonic_start) harmonic_start();
+    if (options.multigrid_directional) {
+      // the preconditioner from here on: per coordinate, the springs weighted by the diagonal of
+      // their Hessian blocks at the start positions, the transverse factor 1 - r / |l| clamped
+      // to [0.5, 1] (0.05 .. 0.3 diverged or stalled at alpha 0.9 on the bench lattices)
+      std::vector<std::array<double, 3>> weights(system.springs.size());
+      const double floor = 0.5;
+      for (std::size_t s = 0; s < system.springs.size(); ++s) {
+        const Spring& spring = system.springs[s];
+        double l[3], len2 = 0.0;
+        for (int c = 0; c < 3; ++c) {
+          l[c] = x_[3 * static_cast<std::size_t>(spring.a) + c] - x_[3 * static_cast<std::size_t>(spring.b) + c];
+          len2 += l[c] * l[c];
+        }
+        const double len = std::sqrt(len2);
+        const double beta = len > 0.0 ? std::clamp(1.0 - spring.rest / len, floor, 1.0) : 1.0;
+        for (int c = 0; c < 3; ++c) {
+          const double along = len > 0.0 ? l[c] * l[c] / len2 : 1.0 / 3.0;
+          weights[s][c] = spring.stiffness * (along + beta * (1.0 - along));
+        }
+      }
+      multigrid_ = std::make_unique<LatticeMultigrid>(system, shape, mg, &weights);
+    }
     previous_ = x_;
     y_ = x_;
     evaluate(y_);

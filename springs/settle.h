@@ -102,6 +102,11 @@ struct SettleOptions {
                                          ///< of the fixed points (the equilibrium at zero rest
                                          ///< lengths) instead of the given free positions
                                          ///< (default true)
+  bool multigrid_directional = false;  ///< multigrid: precondition each coordinate by the
+                                       ///< springs weighted by the diagonal of their Hessian
+                                       ///< blocks at the start (directional stiffness) instead
+                                       ///< of the Laplacian (default false: measured slower,
+                                       ///< docs/BENCHMARKS.md)
   int multigrid_smoothing_steps = 2;  ///< multigrid: Jacobi sweeps before and after each coarse
                                       ///< correction, 1..20 (default 2)
   int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
