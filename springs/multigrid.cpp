@@ -102,6 +102,8 @@ struct Level {
   std::vector<std::size_t> ptr;
   std::vector<int> col;
   std::vector<double> val;
+  bool uniform = false;  // one value an entry, the same operator for the three coordinates
+  double value(std::size_t e, int c) const { return uniform ? val[e] : val[3 * e + c]; }
   // Smoother preconditioner T (per coordinate c): the tridiagonal part of A_c along grid axis
   // axis[c] (line smoothing), or its diagonal; factored per line (Thomas): 3 values a point.
   int axis[3] = {0, 1, 2};
@@ -153,11 +155,21 @@ struct LatticeMultigrid::Impl {
           continue;
         }
         double s0 = b[3 * i], s1 = b[3 * i + 1], s2 = b[3 * i + 2];
-        for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
-          const std::size_t j = static_cast<std::size_t>(L.col[e]);
-          s0 -= L.val[3 * e] * x[3 * j];
-          s1 -= L.val[3 * e + 1] * x[3 * j + 1];
-          s2 -= L.val[3 * e + 2] * x[3 * j + 2];
+        if (L.uniform) {
+          for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
+            const std::size_t j = static_cast<std::size_t>(L.col[e]);
+            const double a = L.val[e];
+            s0 -= a * x[3 * j];
+            s1 -= a * x[3 * j + 1];
+            s2 -= a * x[3 * j + 2];
+          }
+        } else {
+          for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
+            const std::size_t j = static_cast<std::size_t>(L.col[e]);
+            s0 -= L.val[3 * e] * x[3 * j];
+            s1 -= L.val[3 * e + 1] * x[3 * j + 1];
+            s2 -= L.val[3 * e + 2] * x[3 * j + 2];
+          }
         }
         r[3 * i] = s0;
         r[3 * i + 1] = s1;
@@ -381,7 +393,7 @@ struct LatticeMultigrid::Impl {
             for (int a = 0; a < 3; ++a)
               if (extent(L, a) > 1 && static_cast<std::size_t>(L.col[e]) == i + stride(L, a) &&
                   coordinate(i, a) + 1 < extent(L, a))
-                weight[a] += std::abs(L.val[3 * e + c]);
+                weight[a] += std::abs(L.value(e, c));
         }
         for (int a = 1; a < 3; ++a)
           if (weight[a] > weight[best]) best = a;
@@ -393,9 +405,9 @@ struct LatticeMultigrid::Impl {
         const int at = coordinate(i, best);
         for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
           const std::size_t j = static_cast<std::size_t>(L.col[e]);
-          if (j == i) dg[3 * i + c] = L.val[3 * e + c];
-          else if (options.line_smoothing && at > 0 && j + step == i && L.active[j]) L.lo[3 * i + c] = L.val[3 * e + c];
-          else if (options.line_smoothing && at + 1 < extent(L, best) && j == i + step && L.active[j]) up[3 * i + c] = L.val[3 * e + c];
+          if (j == i) dg[3 * i + c] = L.value(e, c);
+          else if (options.line_smoothing && at > 0 && j + step == i && L.active[j]) L.lo[3 * i + c] = L.value(e, c);
+          else if (options.line_smoothing && at + 1 < extent(L, best) && j == i + step && L.active[j]) up[3 * i + c] = L.value(e, c);
         }
       }
       // Thomas factorization of each line
@@ -477,7 +489,7 @@ struct LatticeMultigrid::Impl {
                     if (!F.active[g]) continue;
                     const int gi = static_cast<int>(g % F.nx), gj = static_cast<int>((g / F.nx) % F.ny),
                               gk = static_cast<int>(g / fplane);
-                    const double av[3] = {w * F.val[3 * e], w * F.val[3 * e + 1], w * F.val[3 * e + 2]};
+                    const double av[3] = {w * F.value(e, 0), w * F.value(e, 1), w * F.value(e, 2)};
                     const int qk[2] = {mz.p0[gk], mz.p1[gk]}, qj[2] = {my.p0[gj], my.p1[gj]},
                               qi[2] = {mx.p0[gi], mx.p1[gi]};
                     const double vk[2] = {mz.w0[gk], mz.w1[gk]}, vj[2] = {my.w0[gj], my.w1[gj]},
@@ -495,7 +507,7 @@ struct LatticeMultigrid::Impl {
                           }
                           const int slot = dx + kWindow * (dy + kWindow * dz);
                           const double pw = vi[u] * vj[t] * vk[s];
-                          for (int q = 0; q < 3; ++q) acc[3 * slot + q] += av[q] * pw;
+                          for (int q = 0; q < (F.uniform ? 1 : 3); ++q) acc[3 * slot + q] += av[q] * pw;
                           used[slot] = 1;
                         }
                       }
@@ -509,7 +521,7 @@ struct LatticeMultigrid::Impl {
               const int dx = slot % kWindow - kReach, dy = (slot / kWindow) % kWindow - kReach,
                         dz = slot / (kWindow * kWindow) - kReach;
               cols.push_back((I + dx) + C.nx * ((J + dy) + C.ny * (K + dz)));
-              for (int q = 0; q < 3; ++q) vals.push_back(acc[3 * slot + q]);
+              for (int q = 0; q < (F.uniform ? 1 : 3); ++q) vals.push_back(acc[3 * slot + q]);
               ++count;
             }
             counts[static_cast<std::size_t>(I) + static_cast<std::size_t>(C.nx) * J] = count;
@@ -528,15 +540,16 @@ struct LatticeMultigrid::Impl {
         ++row;
       }
     C.col.reserve(C.ptr.back());
-    C.val.reserve(3 * C.ptr.back());
+    C.uniform = F.uniform;
+    C.val.reserve((C.uniform ? 1 : 3) * C.ptr.back());
     for (int K = 0; K < C.nz; ++K) {
       C.col.insert(C.col.end(), plane_col[K].begin(), plane_col[K].end());
       C.val.insert(C.val.end(), plane_val[K].begin(), plane_val[K].end());
     }
     for (std::size_t i = 0; i < C.points; ++i)
       for (std::size_t e = C.ptr[i]; e < C.ptr[i + 1]; ++e)
-        if (static_cast<std::size_t>(C.col[e]) == i && C.val[3 * e] > 0.0 && C.val[3 * e + 1] > 0.0 &&
-            C.val[3 * e + 2] > 0.0)
+        if (static_cast<std::size_t>(C.col[e]) == i && C.value(e, 0) > 0.0 && C.value(e, 1) > 0.0 &&
+            C.value(e, 2) > 0.0)
           C.active[i] = 1;
     return C;
   }
@@ -554,7 +567,7 @@ struct LatticeMultigrid::Impl {
         }
         for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e)
           if (L.active[static_cast<std::size_t>(L.col[e])])
-            triplets.emplace_back(static_cast<int>(i), L.col[e], L.val[3 * e + c]);
+            triplets.emplace_back(static_cast<int>(i), L.col[e], L.value(e, c));
       }
       Eigen::SparseMatrix<double> matrix(n, n);
       matrix.setFromTriplets(triplets.begin(), triplets.end());
@@ -626,12 +639,14 @@ LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShap
   fine.ptr.assign(n + 1, 0);
   for (std::size_t i = 0; i < n; ++i) fine.ptr[i + 1] = fine.ptr[i] + (fine.active[i] ? count[i] : 0);
   fine.col.resize(fine.ptr.back());
-  fine.val.resize(3 * fine.ptr.back());
+  fine.uniform = weights == nullptr;
+  const std::size_t per_entry = fine.uniform ? 1 : 3;
+  fine.val.resize(per_entry * fine.ptr.back());
   std::vector<std::size_t> fill(fine.ptr.begin(), fine.ptr.end() - 1);
   for (std::size_t i = 0; i < n; ++i)
     if (fine.active[i]) {
       fine.col[fill[i]] = static_cast<int>(i);
-      for (int c = 0; c < 3; ++c) fine.val[3 * fill[i] + c] = diag[3 * i + c];
+      for (std::size_t c = 0; c < per_entry; ++c) fine.val[per_entry * fill[i] + c] = diag[3 * i + c];
       ++fill[i];
     }
   for (std::size_t s = 0; s < system.springs.size(); ++s) {
@@ -639,9 +654,9 @@ LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShap
     if (!fine.active[spring.a] || !fine.active[spring.b]) continue;
     fine.col[fill[spring.a]] = spring.b;
     fine.col[fill[spring.b]] = spring.a;
-    for (int c = 0; c < 3; ++c) {
-      fine.val[3 * fill[spring.a] + c] = -weight(s, c);
-      fine.val[3 * fill[spring.b] + c] = -weight(s, c);
+    for (std::size_t c = 0; c < per_entry; ++c) {
+      fine.val[per_entry * fill[spring.a] + c] = -weight(s, static_cast<int>(c));
+      fine.val[per_entry * fill[spring.b] + c] = -weight(s, static_cast<int>(c));
     }
     ++fill[spring.a];
     ++fill[spring.b];

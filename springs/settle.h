@@ -22,7 +22,14 @@
 ///   each iteration projects every spring onto its rest length (local step) and back-substitutes
 ///   (global step). Optionally Anderson-accelerated with an energy safeguard (Peng, Deng, Zhang
 ///   and Liu 2018, "Anderson acceleration for geometry optimization and physics simulation").
-///   With zero rest lengths the first iteration is the exact answer.
+///   With zero rest lengths the first iteration is the exact answer. Method `multigrid`
+///   (lattices: a LatticeShape whose grid holds every spring between neighbours): the free
+///   points start at the harmonic interpolation of the fixed points, then accelerated gradient
+///   steps preconditioned by one geometric-multigrid V-cycle on the spring Laplacian
+///   (multigrid.h, multigrid_solver.cpp); its iteration count does not grow with the lattice for
+///   model-26 lattices (32-39 iterations at 20^3 to 50^3), it does for model-6 (springs near
+///   their rest length resist sideways motion little: 435-1222); see docs/BENCHMARKS.md. Other
+///   spring systems run the momentum method instead (report backend "momentum-...").
 ///
 /// Verlet runs on one of two data paths that agree to rounding: `structured` (a lattice from
 /// lattice.h: struct of arrays, implicit neighbour offsets, per-direction stiffness arrays,
@@ -107,8 +114,9 @@ struct SettleOptions {
                                        ///< blocks at the start (directional stiffness) instead
                                        ///< of the Laplacian (default false: measured slower,
                                        ///< docs/BENCHMARKS.md)
-  int multigrid_smoothing_steps = 2;  ///< multigrid: Jacobi sweeps before and after each coarse
-                                      ///< correction, 1..20 (default 2)
+  int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each
+                                      ///< coarse correction, 1..20 (default 1: fewer iterations
+                                      ///< and less time than 2 at 30^3 model-6 and 40^3 model-26)
   int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
                                          ///< solved directly, 8..200000 (default 4096)
 
@@ -120,7 +128,8 @@ struct SettleOptions {
 struct SettleReport {
   std::string solver;   ///< "verlet" | "static"
   std::string backend;  ///< Verlet: "structured", "structured-uniform", "general"; static:
-                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt"
+                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt",
+                        ///< "multigrid-<number of levels>"
   int iterations = 0;   ///< iterations run (Newton steps for static newton)
   int inner_iterations = 0;  ///< conjugate-gradient iterations (static newton), else 0
   bool converged = false;  ///< final residual <= tolerance (false when tolerance is 0)
