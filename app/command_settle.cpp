@@ -227,7 +227,9 @@ void add_settle_command(CLI::App& app) {
   cmd->add_option("--targets", args->targets, "Move fixed points first: lines 'index x y z'");
   cmd->add_option("--solver", args->solver, "verlet (thesis, formula 3.8) or static (equilibrium directly)")
       ->capture_default_str();
-  cmd->add_option("--static-method", args->static_method, "static solver: momentum, newton or local-global")
+  cmd->add_option("--static-method", args->static_method,
+                  "static solver: momentum, newton, local-global or multigrid (lattices only; other "
+                  "systems run momentum)")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend,
                   "Compute backend: cpu, gl (OpenGL compute shaders), gl-gs (the thesis's geometry-shader method) "

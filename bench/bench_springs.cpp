@@ -288,6 +288,9 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
     s.name = "static-newton";
     s.options.static_method = StaticMethod::newton;
     solvers.push_back(s);
+    s.name = "static-multigrid";
+    s.options.static_method = StaticMethod::multigrid;
+    solvers.push_back(s);
     s.name = "static-local-global";
     s.options.static_method = StaticMethod::local_global;
     solvers.push_back(s);
@@ -409,7 +412,7 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade,templates")->capture_default_str();
   cmd->add_option("--trade-limit", args->trade_limit, "Seconds per trade run")->capture_default_str();
   cmd->add_option("--trade-solvers", args->trade_solvers,
-                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, "
+                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, static-multigrid, "
                   "static-local-global, static-local-global-plain); default all");
   cmd->add_option("--trade-models", args->trade_models, "Spring models for the trade (6, 26)")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();

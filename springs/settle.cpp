@@ -3,6 +3,7 @@
 #include "springs/settle.h"
 
 #include "geometry/errors.h"
+#include "springs/multigrid.h"
 #include "springs/solvers_internal.h"
 
 #include <algorithm>
@@ -22,7 +23,9 @@ StaticMethod parse_static_method(const std::string& name) {
   if (name == "momentum") return StaticMethod::momentum;
   if (name == "newton") return StaticMethod::newton;
   if (name == "local-global") return StaticMethod::local_global;
-  throw OptionError("static-method: unknown method '" + name + "' (valid: momentum, newton, local-global)");
+  if (name == "multigrid") return StaticMethod::multigrid;
+  throw OptionError("static-method: unknown method '" + name +
+                    "' (valid: momentum, newton, local-global, multigrid)");
 }
 
 Backend parse_backend(const std::string& name) {
@@ -67,6 +70,12 @@ void SettleOptions::validate() const {
     throw OptionError("energy_growth_bound: must be > 1, got " + str(energy_growth_bound));
   if (anderson_window < 1 || anderson_window > 50)
     throw OptionError("anderson_window: must be in 1..50, got " + std::to_string(anderson_window));
+  if (!(multigrid_step > 0.0 && multigrid_step <= 2.0))
+    throw OptionError("multigrid_step: must be in (0, 2], got " + str(multigrid_step));
+  MultigridOptions multigrid;
+  multigrid.smoothing_steps = multigrid_smoothing_steps;
+  multigrid.coarsest_points = multigrid_coarsest_points;
+  multigrid.validate();
 }
 
 std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
@@ -76,6 +85,9 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
   if (options.solver == SolverKind::static_equilibrium) {
     if (options.static_method == StaticMethod::newton) return detail::make_newton_solver(system, options);
     if (options.static_method == StaticMethod::local_global) return detail::make_static_solver(system, options);
+    if (options.static_method == StaticMethod::multigrid && detail::multigrid_fits(system, shape))
+      return detail::make_multigrid_solver(system, options, *shape);
+    // momentum, or multigrid on a system that is not a lattice grid: the momentum method
     if (shape && options.backend != Backend::general) {
       auto solver = detail::make_structured_verlet(system, options, *shape, true);
       if (solver) return solver;
@@ -243,6 +255,21 @@ VerletCoefficients momentum_coefficients(const SpringSystem& system) {
   out.min_mass = 1.0;
   out.max_point_stiffness = 0.5 * bound;
   return out;
+}
+
+bool multigrid_fits(const SpringSystem& system, const LatticeShape* shape) {
+  if (!shape || shape->nx < 2 || shape->ny < 2 || shape->nz < 2) return false;
+  const std::size_t n = system.positions.size();
+  if (static_cast<std::size_t>(shape->nx) * shape->ny * shape->nz != n) return false;
+  const std::size_t plane = static_cast<std::size_t>(shape->nx) * shape->ny;
+  for (const Spring& s : system.springs) {
+    const std::size_t a = static_cast<std::size_t>(s.a), b = static_cast<std::size_t>(s.b);
+    const long di = static_cast<long>(a % shape->nx) - static_cast<long>(b % shape->nx);
+    const long dj = static_cast<long>((a / shape->nx) % shape->ny) - static_cast<long>((b / shape->nx) % shape->ny);
+    const long dk = static_cast<long>(a / plane) - static_cast<long>(b / plane);
+    if (std::abs(di) > 1 || std::abs(dj) > 1 || std::abs(dk) > 1) return false;
+  }
+  return true;
 }
 
 double energy_floor(const SpringSystem& system) {

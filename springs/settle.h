@@ -22,7 +22,14 @@
 ///   each iteration projects every spring onto its rest length (local step) and back-substitutes
 ///   (global step). Optionally Anderson-accelerated with an energy safeguard (Peng, Deng, Zhang
 ///   and Liu 2018, "Anderson acceleration for geometry optimization and physics simulation").
-///   With zero rest lengths the first iteration is the exact answer.
+///   With zero rest lengths the first iteration is the exact answer. Method `multigrid`
+///   (lattices: a LatticeShape whose grid holds every spring between neighbours): the free
+///   points start at the harmonic interpolation of the fixed points, then accelerated gradient
+///   steps preconditioned by one geometric-multigrid V-cycle on the spring Laplacian
+///   (multigrid.h, multigrid_solver.cpp); its iteration count does not grow with the lattice for
+///   model-26 lattices (32-39 iterations at 20^3 to 50^3), it does for model-6 (springs near
+///   their rest length resist sideways motion little: 435-1222); see docs/BENCHMARKS.md. Other
+///   spring systems run the momentum method instead (report backend "momentum-...").
 ///
 /// Verlet runs on one of two data paths that agree to rounding: `structured` (a lattice from
 /// lattice.h: struct of arrays, implicit neighbour offsets, per-direction stiffness arrays,
@@ -58,13 +65,16 @@ enum class StaticMethod {
                 ///< gradient restarts (O'Donoghue and Candes 2015), unit masses, step 1 / L
   newton,       ///< truncated Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
   local_global, ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
+  multigrid,    ///< Newton-CG preconditioned by a geometric multigrid V-cycle on the spring
+                ///< Laplacian (multigrid.h); lattices only: without a fitting LatticeShape it
+                ///< runs the momentum method (report backend "momentum-...")
 };
 /// Acceleration of the local-global method.
 enum class Acceleration { none, anderson };
 
 /// Parse helpers for the command line. Each throws OptionError naming the option and value.
 SolverKind parse_solver_kind(const std::string& name);  ///< "verlet" | "static"
-StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global"
+StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global" | "multigrid"
 Backend parse_backend(const std::string& name);         ///< "auto" | "structured" | "general"
 const char* solver_name(SolverKind kind);
 const char* backend_name(Backend backend);
@@ -93,6 +103,22 @@ struct SettleOptions {
                                                         ///< on large lattices, docs/BENCHMARKS.md)
   Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
   int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
+  double multigrid_step = 0.9;  ///< multigrid: step alpha along the V-cycle-preconditioned force,
+                                ///< in (0, 2] (default 0.9)
+  bool multigrid_harmonic_start = true;  ///< multigrid: start from the harmonic interpolation
+                                         ///< of the fixed points (the equilibrium at zero rest
+                                         ///< lengths) instead of the given free positions
+                                         ///< (default true)
+  bool multigrid_directional = false;  ///< multigrid: precondition each coordinate by the
+                                       ///< springs weighted by the diagonal of their Hessian
+                                       ///< blocks at the start (directional stiffness) instead
+                                       ///< of the Laplacian (default false: measured slower,
+                                       ///< docs/BENCHMARKS.md)
+  int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each
+                                      ///< coarse correction, 1..20 (default 1: fewer iterations
+                                      ///< and less time than 2 at 30^3 model-6 and 40^3 model-26)
+  int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
+                                         ///< solved directly, 8..200000 (default 4096)
 
   /// Throws OptionError naming the bad field and value.
   void validate() const;
@@ -102,7 +128,8 @@ struct SettleOptions {
 struct SettleReport {
   std::string solver;   ///< "verlet" | "static"
   std::string backend;  ///< Verlet: "structured", "structured-uniform", "general"; static:
-                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt"
+                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt",
+                        ///< "multigrid-<number of levels>"
   int iterations = 0;   ///< iterations run (Newton steps for static newton)
   int inner_iterations = 0;  ///< conjugate-gradient iterations (static newton), else 0
   bool converged = false;  ///< final residual <= tolerance (false when tolerance is 0)

@@ -67,6 +67,14 @@ bool structured_simd_active();
 
 std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
+/// The multigrid static method: accelerated gradient preconditioned by a multigrid V-cycle on
+/// the spring Laplacian (multigrid_solver.cpp). `shape` must satisfy multigrid_fits.
+std::unique_ptr<SpringSolver> make_multigrid_solver(const SpringSystem& system,
+                                                    const SettleOptions& options,
+                                                    const LatticeShape& shape);
+/// True when `shape` describes `system` as a grid the multigrid solver can use: nx ny nz ==
+/// #points, each >= 2, and every spring joins grid neighbours.
+bool multigrid_fits(const SpringSystem& system, const LatticeShape* shape);
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,
                                                  const SettleOptions& options);
 

@@ -118,7 +118,7 @@ TEST_CASE("fascicle settle on a thesis-format lattice", "[springs][settle][progr
   const std::string targets = dir.file("targets.txt");
   write_text(targets, targets_text);
   const std::string output = dir.file("out.txt"), report = dir.file("report.json");
-  for (const char* solver : {"verlet", "static"}) {
+  for (const char* solver : {"verlet", "static", "static --static-method multigrid"}) {
     INFO(solver);
     const std::string command = test::program() + " --quiet settle " + input + " --targets " + targets + " --solver " +
                                 solver + " --tolerance 1e-8 -o " + output + " --report " + report;
@@ -126,6 +126,8 @@ TEST_CASE("fascicle settle on a thesis-format lattice", "[springs][settle][progr
     std::ifstream in(report);
     const nlohmann::json j = nlohmann::json::parse(in);
     CHECK(j["converged"] == true);
+    if (std::string(solver).find("multigrid") != std::string::npos)  // the detected lattice runs it
+      CHECK(j["backend"].get<std::string>().rfind("multigrid-", 0) == 0);
     CHECK(j["residual"].get<double>() <= 1e-8);
     CHECK(j["lattice"]["nx"] == lattice.nx);
     const ThesisModel settled = read_thesis_model(output);

@@ -3,12 +3,15 @@
 
 #include "geometry/errors.h"
 #include "springs/lattice.h"
+#include "springs/multigrid.h"
 #include "springs/settle.h"
 #include "springs/solvers_internal.h"
 
 #include <catch2/catch.hpp>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -306,7 +309,8 @@ TEST_CASE("stiffness scaled over 6 orders converges or stops with SolverError, n
 
 TEST_CASE("the same lattice at 1e-6 and 1e4 length scale gives the same relative result", "[springs][solver]") {
   for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
-   for (StaticMethod method : {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global}) {
+   for (StaticMethod method : {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global,
+                               StaticMethod::multigrid}) {
     if (solver == SolverKind::verlet && method != StaticMethod::momentum) continue;
     std::vector<std::vector<Vec3>> results;
     std::vector<SettleReport> reports;
@@ -393,6 +397,17 @@ TEST_CASE("static equilibrium matches a long Verlet run", "[springs][solver]") {
     CHECK(rd.converged);
     CHECK(rd.iterations >= rc.iterations);
     CHECK(max_distance(a.positions, d.positions) < 1e-8);
+    // The multigrid method (a 7 x 7 x 9 grid: below the default coarsest size, one level solved
+    // directly; with a coarsest size of 16 points, three levels and V-cycles).
+    for (int coarsest : {4096, 16}) {
+      statics.static_method = StaticMethod::multigrid;
+      statics.multigrid_coarsest_points = coarsest;
+      SpringSystem e = lattice.system;
+      const SettleReport re = settle(e, statics, &shape);
+      CHECK(re.converged);
+      CHECK(re.backend == (coarsest == 16 ? "multigrid-3" : "multigrid-1"));
+      CHECK(max_distance(a.positions, e.positions) < 1e-8);
+    }
   }
 }
 
@@ -476,4 +491,223 @@ TEST_CASE("solver errors and option errors", "[springs][solver]") {
   options.dt = 10.0;
   SpringSystem diverging = lattice.system;
   CHECK_THROWS_AS(settle(diverging, options), SolverError);
+}
+
+namespace {
+
+// The bench problem of docs/BENCHMARKS.md: a regular n^3 lattice of the unit cube whose boundary
+// is moved by a smooth non-affine map (stretch, squeeze, bend, shear).
+Lattice moved_cube(int n, SpringModel model) {
+  Lattice lattice = regular_lattice(n, model, 1.0 / (n - 1), 1.0, true);
+  for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
+    if (!lattice.system.fixed[i]) continue;
+    Vec3& p = lattice.system.positions[i];
+    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(),
+             p.z() + 0.15 * p.x() * p.x());
+  }
+  return lattice;
+}
+
+// Largest residual reduction factor of V-cycles 3..10 on L x = b from a random start.
+double vcycle_factor(LatticeMultigrid& multigrid, std::size_t points) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> value(-1.0, 1.0);
+  std::vector<double> b(3 * points), x(3 * points), r;
+  for (double& v : b) v = value(rng);
+  for (double& v : x) v = value(rng);
+  double previous = multigrid.residual(b, x, r), worst = 0.0;
+  for (int cycle = 1; cycle <= 10; ++cycle) {
+    multigrid.cycle(b, x);
+    const double now = multigrid.residual(b, x, r);
+    if (cycle >= 3) worst = std::max(worst, now / previous);
+    previous = now;
+  }
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("the multigrid V-cycle reduces the Laplacian residual by a factor independent of n",
+          "[springs][multigrid]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    for (bool lines : {true, false}) {
+      std::vector<int> levels;
+      for (int n : {9, 17, 33}) {
+        const Lattice lattice = moved_cube(n, model);
+        MultigridOptions options;
+        options.line_smoothing = lines;
+        options.coarsest_points = 512;  // 9^3 gets two levels too
+        LatticeMultigrid multigrid(lattice.system, shape_of(lattice), options);
+        const double factor = vcycle_factor(multigrid, lattice.system.positions.size());
+        INFO("n " << n << " model-" << static_cast<int>(model) << " line smoothing " << lines);
+        CHECK(factor < 0.3);
+        CHECK(factor > 0.0);
+        levels.push_back(multigrid.levels());
+        CHECK(multigrid.level_points().front() == n * n * n);
+      }
+      CHECK(levels[0] >= 2);
+      CHECK(levels[2] > levels[1]);
+      CHECK(levels[1] > levels[0]);
+    }
+  }
+  // Springs of many lengths and stiffnesses (a curved template), a non-cubic grid with an even
+  // dimension, interior points pinned, and per-coordinate weights.
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    Lattice lattice = moved_lattice(TemplateKind::curved, 600, 24, model);
+    std::mt19937 rng(5);
+    for (int i = 0; i < 30; ++i) lattice.system.fixed[rng() % lattice.system.fixed.size()] = 1;
+    std::vector<std::array<double, 3>> weights(lattice.system.springs.size());
+    std::uniform_real_distribution<double> scale(0.05, 1.0);
+    for (std::size_t s = 0; s < weights.size(); ++s)
+      for (int c = 0; c < 3; ++c) weights[s][c] = lattice.system.springs[s].stiffness * scale(rng);
+    MultigridOptions options;
+    options.coarsest_points = 200;
+    const std::vector<std::array<double, 3>>* none = nullptr;
+    for (const std::vector<std::array<double, 3>>* w : {none, static_cast<const std::vector<std::array<double, 3>>*>(&weights)}) {
+      LatticeMultigrid multigrid(lattice.system, shape_of(lattice), options, w);
+      INFO("model-" << static_cast<int>(model) << " weighted " << (w != nullptr) << " levels " << multigrid.levels());
+      CHECK(multigrid.levels() >= 3);
+      CHECK(vcycle_factor(multigrid, lattice.system.positions.size()) < 0.5);
+    }
+  }
+}
+
+TEST_CASE("the multigrid preconditioner is symmetric and zero at fixed points", "[springs][multigrid]") {
+  const Lattice lattice = moved_lattice(TemplateKind::pennate, 200, 15, SpringModel::model26);
+  MultigridOptions options;
+  options.coarsest_points = 100;
+  LatticeMultigrid multigrid(lattice.system, shape_of(lattice), options);
+  const std::size_t n = lattice.system.positions.size();
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> value(-1.0, 1.0);
+  std::vector<double> a(3 * n), b(3 * n), ma, mb;
+  for (double& v : a) v = value(rng);
+  for (double& v : b) v = value(rng);
+  const double aa = multigrid.precondition(a, ma);
+  multigrid.precondition(b, mb);
+  CHECK(aa > 0.0);
+  double a_mb = 0.0, b_ma = 0.0;
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    if (lattice.system.fixed[k / 3]) {
+      CHECK(ma[k] == 0.0);
+      continue;
+    }
+    a_mb += a[k] * mb[k];
+    b_ma += b[k] * ma[k];
+  }
+  CHECK(a_mb == Approx(b_ma).epsilon(1e-10));
+}
+
+TEST_CASE("static multigrid reaches 1e-6 and the momentum method's equilibrium", "[springs][multigrid]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    // The bench problem (its boundary squeezes y by 0.8, so model-6 springs buckle sideways and
+    // the equilibrium is not unique: only convergence is checked here).
+    {
+      const Lattice lattice = moved_cube(20, model);
+      const LatticeShape shape = shape_of(lattice);
+      SettleOptions options;
+      options.solver = SolverKind::static_equilibrium;
+      options.static_method = StaticMethod::multigrid;
+      SpringSystem a = lattice.system;
+      const SettleReport ra = settle(a, options, &shape);
+      INFO("bench map, model-" << static_cast<int>(model) << " iterations " << ra.iterations);
+      CHECK(ra.converged);
+      CHECK(ra.residual <= 1e-6);
+      CHECK(relative_residual(a, a.positions) <= 1e-6);
+      CHECK(ra.backend == "multigrid-2");
+      CHECK(ra.residual_history.size() == static_cast<std::size_t>(ra.iterations) + 1);
+      CHECK(ra.residual_history.front() > 1e-2);
+      CHECK(max_distance(a.positions, lattice.system.positions) > 1e-2);
+    }
+    // Every spring stretched (a unique equilibrium): multigrid at 1e-6 lies within 1e-4 spacings of
+    // the momentum method's at 1e-10, with and without the harmonic start and with the
+    // directional preconditioner.
+    Lattice lattice = regular_lattice(20, model, 1.0 / 19, 1.0, true);
+    for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
+      if (!lattice.system.fixed[i]) continue;
+      Vec3& p = lattice.system.positions[i];
+      p = Vec3(1.25 * p.x() + 0.1 * std::sin(2.0 * p.z()), 1.2 * p.y() + 0.1 * p.x() * p.z(),
+               1.15 * p.z() + 0.1 * p.x() * p.x());
+    }
+    const LatticeShape shape = shape_of(lattice);
+    SettleOptions momentum;
+    momentum.solver = SolverKind::static_equilibrium;
+    momentum.static_method = StaticMethod::momentum;
+    momentum.tolerance = 1e-10;
+    SpringSystem b = lattice.system;
+    REQUIRE(settle(b, momentum, &shape).converged);
+    for (int variant = 0; variant < 3; ++variant) {
+      SettleOptions options;
+      options.solver = SolverKind::static_equilibrium;
+      options.static_method = StaticMethod::multigrid;
+      options.multigrid_harmonic_start = variant != 1;
+      options.multigrid_directional = variant == 2;
+      SpringSystem a = lattice.system;
+      const SettleReport ra = settle(a, options, &shape);
+      INFO("stretched, model-" << static_cast<int>(model) << " variant " << variant << " iterations " << ra.iterations);
+      CHECK(ra.converged);
+      CHECK(ra.residual <= 1e-6);
+      CHECK(max_distance(a.positions, lattice.system.positions) > 1e-2);
+      CHECK(max_distance(a.positions, b.positions) < 1e-4 / 19);
+      for (std::size_t i = 0; i < a.positions.size(); ++i)
+        if (lattice.system.fixed[i]) CHECK(a.positions[i] == lattice.system.positions[i]);
+    }
+  }
+}
+
+TEST_CASE("static multigrid falls back to the momentum method off the lattice grid", "[springs][multigrid]") {
+  const Lattice lattice = moved_lattice(TemplateKind::parallel, 16, 5, SpringModel::model6);
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.static_method = StaticMethod::multigrid;
+  // no shape: a general spring system
+  SpringSystem a = lattice.system;
+  const SettleReport ra = settle(a, options);
+  CHECK(ra.backend == "momentum-general");
+  CHECK(ra.converged);
+  // a shape, but a spring that is not between grid neighbours
+  SpringSystem b = lattice.system;
+  b.springs.push_back({0, lattice.point_count() - 1, 1.0, 1.0});
+  const LatticeShape shape = shape_of(lattice);
+  CHECK_FALSE(detail::multigrid_fits(b, &shape));
+  CHECK(detail::multigrid_fits(lattice.system, &shape));
+  CHECK_THROWS_AS(LatticeMultigrid(b, shape), OptionError);
+  const SettleReport rb = settle(b, options, &shape);
+  CHECK(rb.backend.rfind("momentum-", 0) == 0);
+  // a shape that does not describe the system
+  LatticeShape wrong = shape;
+  wrong.nz += 1;
+  CHECK_THROWS_AS(LatticeMultigrid(lattice.system, wrong), OptionError);
+  SpringSystem c = lattice.system;
+  CHECK(settle(c, options, &wrong).backend.rfind("momentum-", 0) == 0);
+  // the lattice itself runs multigrid
+  SpringSystem d = lattice.system;
+  CHECK(settle(d, options, &shape).backend.rfind("multigrid-", 0) == 0);
+}
+
+TEST_CASE("static multigrid options and errors", "[springs][multigrid]") {
+  CHECK(parse_static_method("multigrid") == StaticMethod::multigrid);
+  const Lattice lattice = moved_lattice(TemplateKind::parallel, 16, 5, SpringModel::model6);
+  const LatticeShape shape = shape_of(lattice);
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.static_method = StaticMethod::multigrid;
+  for (double step : {0.0, -1.0, 2.5}) {
+    options.multigrid_step = step;
+    CHECK_THROWS_WITH(make_solver(lattice.system, options, &shape), Catch::Contains("multigrid_step"));
+  }
+  options = SettleOptions();
+  options.multigrid_smoothing_steps = 0;
+  CHECK_THROWS_WITH(options.validate(), Catch::Contains("multigrid_smoothing_steps"));
+  options = SettleOptions();
+  options.multigrid_coarsest_points = 2;
+  CHECK_THROWS_WITH(options.validate(), Catch::Contains("multigrid_coarsest_points"));
+  // a part of the lattice without a fixed point
+  const Lattice free_lattice = regular_lattice(5, SpringModel::model6, 1.0, 1.0, false);
+  const LatticeShape free_shape = shape_of(free_lattice);
+  SettleOptions statics;
+  statics.solver = SolverKind::static_equilibrium;
+  statics.static_method = StaticMethod::multigrid;
+  SpringSystem system = free_lattice.system;
+  CHECK_THROWS_AS(settle(system, statics, &free_shape), SolverError);
 }
