@@ -47,7 +47,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   CHECK(reports == 47);
   CHECK(refused.empty());
   // Floors, not the goal (every muscle): on 2026-11-21 with the untangling, 19 muscles passed
-  // every criterion and 39 had no inverted cell (docs/BENCHMARKS.md, "Decompose").
+  // every criterion and 38 of 47 had no inverted cell (docs/BENCHMARKS.md, "Decompose").
   CHECK(passed >= 17);
-  CHECK(unfolded >= 37);
+  CHECK(unfolded >= 36);
 }
