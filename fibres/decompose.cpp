@@ -294,6 +294,10 @@ void DecomposeOptions::validate() const {
   placement.validate();
   settle.validate();
   untangle.validate();
+  if (!(end_shift >= 0.0 && end_shift < 1.0))
+    throw OptionError("end_shift: must be in [0, 1), got " + std::to_string(end_shift));
+  if (!(end_anchor_weight > 0.0 && end_anchor_weight < 1e12))
+    throw OptionError("end_anchor_weight: must be in (0, 1e12), got " + std::to_string(end_anchor_weight));
   if (untangle_iterations < 0 || untangle_iterations > 10'000'000)
     throw OptionError("untangle_iterations: must be in 0..10000000, got " + std::to_string(untangle_iterations));
   if (fibres < 4) throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
@@ -570,9 +574,11 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     // `free_ends` the fibre ends may give way too (into the muscle, or along the surface), held
     // by soft pins at the places the cast gave them: a cell against an end face can need that.
     int budget = options.untangle_iterations;
+    const double length = muscle_length(muscle);
     auto attempt = [&](bool free_ends) {
       std::vector<UntangleAnchor> anchors;
       std::unordered_map<int, std::size_t> anchor_of;  // lattice point -> its anchor
+      std::unordered_map<int, Vec3> cast_place;         // fibre end -> where the cast put it
       if (free_ends) {
         const std::vector<double> spacing = local_spacing(system);
         for (int k : {0, lattice.nz - 1})
@@ -582,7 +588,8 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
               const double h = spacing[static_cast<std::size_t>(q)];
               system.fixed[static_cast<std::size_t>(q)] = 0;
               anchor_of[q] = anchors.size();
-              anchors.push_back({q, system.positions[static_cast<std::size_t>(q)], 30.0 / (h * h)});
+              cast_place[q] = system.positions[static_cast<std::size_t>(q)];
+              anchors.push_back({q, system.positions[static_cast<std::size_t>(q)], options.end_anchor_weight / (h * h)});
             }
       }
       for (int round = 0;; ++round) {
@@ -648,40 +655,49 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
           }
         }
       }
-      // The ends are fixed again; one the untangling left outside goes to the closest surface point.
+      // The ends are fixed again, at most `end_shift` (a share of the muscle length) from their
+      // cast places so that they stay on their attachment areas; one the untangling left outside
+      // goes to the closest surface point.
       if (free_ends)
         for (int k : {0, lattice.nz - 1})
           for (int j = 1; j + 1 < lattice.ny; ++j)
             for (int i = 1; i + 1 < lattice.nx; ++i) {
-              const std::size_t q = static_cast<std::size_t>(lattice.index(i, j, k));
-              if (query.side(system.positions[q]) == Side::outside)
-                system.positions[q] = query.closest_point(system.positions[q]).position;
-              system.fixed[q] = 1;
+              const int q = lattice.index(i, j, k);
+              Vec3& x = system.positions[static_cast<std::size_t>(q)];
+              const Vec3 cast = cast_place.at(q);
+              const double limit = options.end_shift * length;
+              if ((x - cast).norm() > limit) x = cast + limit * (x - cast).normalized();
+              if (query.side(x) == Side::outside) x = query.closest_point(x).position;
+              system.fixed[static_cast<std::size_t>(q)] = 1;
             }
       return inverted_count();
     };
-    // The ends free first; if cells stay inverted, again from the settled lattice with the ends
-    // held (some lattices unfold only so); the result with fewer inverted cells stays. Each
-    // attempt has the whole iteration budget.
+    // The ends free first; then, while cells stay inverted, on from there with the ends held,
+    // and last from the settled lattice with the ends held (some lattices unfold only so); the
+    // result with the fewest inverted cells stays. Each attempt has the whole iteration budget.
     const std::vector<Vec3> settled = system.positions;
     const std::vector<char> settled_fixed = system.fixed;
     long inverted_left = attempt(true);
-    if (inverted_left > 0) {
-      const std::vector<Vec3> freed = system.positions;
-      const long freed_inverted = inverted_left;
-      system.positions = settled;
+    std::string kept = "free_ends";
+    auto try_held = [&](const std::vector<Vec3>& from, const std::string& name) {
+      if (inverted_left == 0) return;
+      const std::vector<Vec3> best = system.positions;
+      const long best_inverted = inverted_left;
+      system.positions = from;
       system.fixed = settled_fixed;
       budget = options.untangle_iterations;
       inverted_left = attempt(false);
-      if (inverted_left >= freed_inverted) {
-        system.positions = freed;
+      if (inverted_left >= best_inverted) {
+        system.positions = best;
         system.fixed = settled_fixed;
-        inverted_left = freed_inverted;
-        runs.push_back({{"kept", "free_ends"}});
+        inverted_left = best_inverted;
       } else {
-        runs.push_back({{"kept", "held_ends"}});
+        kept = name;
       }
-    }
+    };
+    try_held(system.positions, "free_then_held_ends");
+    try_held(settled, "held_ends");
+    runs.push_back({{"kept", kept}});
     outside = outside_free_points(system, query);
     // Last resort: points still outside are fixed just inside (also fibre points the settle's
     // containment fixed at a place that was not inside: the fallback of contact_target).

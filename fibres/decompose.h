@@ -86,10 +86,18 @@ struct DecomposeOptions {
   /// Unfold the cells the settle leaves inverted (step 6c, fibres/untangle.h) (default true).
   bool untangle_cells = true;
   UntangleOptions untangle;     ///< the untangling (defaults: fibres/untangle.h)
-  /// L-BFGS iterations the whole untangling stage may spend, all rounds together, >= 0 (default
-  /// 12000: a lattice that cannot be unfolded costs seconds, not minutes; an iteration count,
-  /// not a time, so that the result does not depend on the machine).
-  int untangle_iterations = 12000;
+  /// L-BFGS iterations each of the (at most three) untangling attempts may spend, all its rounds
+  /// together, >= 0 (default 8000: a lattice that cannot be unfolded costs seconds, not minutes;
+  /// an iteration count, not a time, so that the result does not depend on the machine).
+  int untangle_iterations = 8000;
+  /// Weight of the soft pins that hold the fibre ends at their cast places when the untangling
+  /// lets them move, per squared local spacing (energy units of one well-shaped tetrahedron are
+  /// about 3), > 0 (default 30; stiffer pins make the untangling fail more often).
+  double end_anchor_weight = 30.0;
+  /// Farthest a fibre end may move from its cast place in the untangling, as a share of the
+  /// muscle length, [0, 1) (default 0.0095: with the cast ends within `placement.region_radius`
+  /// (0.01) of an area point, the ends stay within 0.02 of their areas, the check's limit).
+  double end_shift = 0.0095;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
