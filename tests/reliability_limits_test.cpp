@@ -75,6 +75,19 @@ Error read_error(const std::string& path) {
   return Error(ErrorCode::internal, "unreachable");
 }
 
+/// Reads `path`, which must be refused: a one-line error naming the file, never `internal`, and
+/// this process grows by less than 64 MB while reading it.
+void check_refused_in_bounded_memory(const std::string& path) {
+  INFO(path);
+  const long long before = peak_rss_bytes();
+  const Error e = read_error(path);
+  INFO(e.what());
+  CHECK(e.code() != ErrorCode::internal);
+  CHECK(std::string(e.what()).find(path) == 0);
+  CHECK(std::string(e.what()).find('\n') == std::string::npos);
+  CHECK(peak_rss_bytes() - before < (64LL << 20));
+}
+
 }  // namespace
 
 TEST_CASE("limits: a header declaring huge counts is refused before anything is allocated", "[reliability]") {
@@ -151,16 +164,9 @@ TEST_CASE("limits: 200 MB of random bytes in every format gives a clear error", 
   for (const char* ext : {"off", "obj", "stl", "ply", "vtk", "txt", "xyz"}) {
     const std::string path = dir.file(std::string("garbage.") + ext);
     write_bytes(path, garbage);
-    INFO(path);
-    const long long before = peak_rss_bytes();
-    const Error e = read_error(path);
-    INFO(e.what());
-    CHECK(e.code() != ErrorCode::internal);
-    CHECK(std::string(e.what()).find(path) == 0);
-    CHECK(std::string(e.what()).find('\n') == std::string::npos);
     // The file is mapped, not copied (detail::FileBytes): refused at its first bad token or
     // count, only the pages read so far become resident, far less than the 200 MB.
-    CHECK(peak_rss_bytes() - before < (64LL << 20));
+    check_refused_in_bounded_memory(path);
     fs::remove(path);
   }
   // Below the file size limit the file is refused outright.
@@ -191,36 +197,19 @@ TEST_CASE("limits: a 2 GiB file of garbage is refused without reading it all", "
     const std::uint64_t v = random();
     std::memcpy(&head[i], &v, 8);
   }
-  for (const char* ext : {"off", "obj", "stl", "ply", "vtk"}) {
-    const std::string path = dir.file(std::string("sparse.") + ext);
+  // `head` then a hole up to 2 GiB, as NAME.EXT.
+  auto refused_in_bounded_memory = [&](const std::string& name, const char* ext) {
+    const std::string path = dir.file(name + "." + ext);
     write_bytes(path, head);
     fs::resize_file(path, 2ULL << 30);
-    INFO(path);
-    const long long before = peak_rss_bytes();
-    const Error e = read_error(path);
-    INFO(e.what());
-    CHECK(e.code() != ErrorCode::internal);
-    CHECK(std::string(e.what()).find(path) == 0);
-    CHECK(std::string(e.what()).find('\n') == std::string::npos);
-    CHECK(peak_rss_bytes() - before < (64LL << 20));
+    check_refused_in_bounded_memory(path);
     fs::remove(path);
-  }
+  };
+  for (const char* ext : {"off", "obj", "stl", "ply", "vtk"}) refused_in_bounded_memory("sparse", ext);
   // The same with printable text and no line end anywhere: the PLY and VTK readers decide on the
   // first bytes, not after searching the first line's end. (OBJ reads such a file to the end.)
   for (char& c : head) c = static_cast<char>(' ' + static_cast<unsigned char>(c) % 95);
-  for (const char* ext : {"off", "stl", "ply", "vtk"}) {
-    const std::string path = dir.file(std::string("one-line.") + ext);
-    write_bytes(path, head);
-    fs::resize_file(path, 2ULL << 30);
-    INFO(path);
-    const long long before = peak_rss_bytes();
-    const Error e = read_error(path);
-    INFO(e.what());
-    CHECK(e.code() != ErrorCode::internal);
-    CHECK(std::string(e.what()).find(path) == 0);
-    CHECK(peak_rss_bytes() - before < (64LL << 20));
-    fs::remove(path);
-  }
+  for (const char* ext : {"off", "stl", "ply", "vtk"}) refused_in_bounded_memory("one-line", ext);
 }
 
 TEST_CASE("limits: a muscle among 20 000 tiny tetrahedra is kept as repaired alone", "[reliability][resource]") {
