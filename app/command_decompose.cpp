@@ -79,12 +79,7 @@ void run_decompose(const DecomposeArgs& args) {
                  q.coverage.p95, q.attachment.origin_max, q.attachment.insertion_max, r.seconds, r.repair_seconds,
                  r.sphere_seconds, r.placement_seconds, r.settle_seconds, r.check_seconds);
   } catch (const Error& e) {
-    if (!args.report.empty() && !report.contains("status")) {
-      report["status"] = "failed";
-      report["error"] = e.what();
-      report["error_code"] = error_name(e.code());
-      write_json_report(args.report, report);
-    }
+    write_failure_report(args.report, report, e);
     throw;
   }
 }

@@ -43,11 +43,8 @@ void run_repair(const RepairArgs& args) {
                  result.mesh.positions.size(), result.mesh.triangles.size(), result.report.status,
                  result.report.fallback_used ? " by alpha wrap" : "", result.report.seconds);
   } catch (const Error& e) {
-    if (!args.report.empty()) {
-      nlohmann::json report = {{"status", "failed"}, {"input_file", args.input},
-                               {"error", e.what()}, {"error_code", error_name(e.code())}};
-      write_json_report(args.report, report);
-    }
+    nlohmann::json report = {{"input_file", args.input}};
+    write_failure_report(args.report, report, e);
     throw;
   }
 }

@@ -165,12 +165,7 @@ void run_sphere(const SphereArgs& args) {
                  args.output, map.positions.size(), map.report.initial_map.empty() ? map.report.method : map.report.initial_map,
                  q.flipped, q.degenerate, q.area_ratio_min, q.area_ratio_max, q.area_log_mean, map.report.seconds);
   } catch (const Error& e) {
-    if (!args.report.empty() && !report.contains("status")) {
-      report["status"] = "failed";
-      report["error"] = e.what();
-      report["error_code"] = error_name(e.code());
-      write_json_report(args.report, report);
-    }
+    write_failure_report(args.report, report, e);
     throw;
   }
 }

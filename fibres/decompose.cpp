@@ -300,10 +300,15 @@ void DecomposeOptions::validate() const {
     throw OptionError("end_anchor_weight: must be in (0, 1e12), got " + std::to_string(end_anchor_weight));
   if (untangle_iterations < 0 || untangle_iterations > 10'000'000)
     throw OptionError("untangle_iterations: must be in 0..10000000, got " + std::to_string(untangle_iterations));
-  if (fibres < 4) throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
+  // Decompose's own cap on the fibre count (below the lattice's), then the lattice's checks of
+  // fibres, resolution and their product.
   if (fibres > 1'000'000) throw OptionError("fibres: at most 1000000, got " + std::to_string(fibres));
-  if (resolution < 2 || resolution > 100'000)
-    throw OptionError("resolution: must be in 2..100000 points per fibre, got " + std::to_string(resolution));
+  springs::LatticeOptions lattice;
+  lattice.kind = kind;
+  lattice.fibres = fibres;
+  lattice.resolution = resolution;
+  lattice.model = model;
+  lattice.validate();
   if (backend != "cpu" && backend != "gl" && backend != "auto")
     throw OptionError("backend: unknown backend '" + backend + "' (valid: cpu, gl, auto)");
   if (cast_rounds < 0 || cast_rounds > 100)

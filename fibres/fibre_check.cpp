@@ -15,8 +15,6 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -365,13 +363,9 @@ void CheckOptions::validate() const {
 
 double muscle_length(const TriangleMesh& muscle) {
   if (muscle.positions.empty()) return 0.0;
-  Vec3 mean = Vec3::Zero();
-  for (const Vec3& p : muscle.positions) mean += p;
-  mean /= static_cast<double>(muscle.positions.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Vec3& p : muscle.positions) cov += (p - mean) * (p - mean).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  const Vec3 axis = eig.eigenvectors().col(2);
+  const PrincipalAxes principal = principal_axes(muscle.positions);
+  const Vec3& mean = principal.mean;
+  const Vec3 axis = principal.major();
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (const Vec3& p : muscle.positions) {
     const double t = (p - mean).dot(axis);

@@ -4,7 +4,6 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,23 +16,6 @@ namespace fascicle {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-struct Principal {
-  Vec3 mean = Vec3::Zero();
-  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();  // columns by increasing variance
-};
-
-Principal principal_axes(const std::vector<Vec3>& points) {
-  Principal out;
-  if (points.empty()) return out;
-  for (const Vec3& p : points) out.mean += p;
-  out.mean /= static_cast<double>(points.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Vec3& p : points) cov += (p - out.mean) * (p - out.mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  out.axes = eig.eigenvectors();
-  return out;
-}
 
 // Vertices within `radius` of any of `points` (hash grid of cell `radius`), plus for each point
 // the nearest corner of its face, so that a region is never empty.
@@ -329,7 +311,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   report.insertion_radius_max_deg = *imax * 180.0 / kPi;
 
   // Twist: the template's r axis (azimuth 0 in its frame) towards the muscle's second axis.
-  const Principal axes = principal_axes(muscle.positions);
+  const PrincipalAxes axes = principal_axes(muscle.positions);
   const Vec3 second = axes.axes.col(1);
   double sx = 0.0, sy = 0.0;
   for (std::size_t v = 0; v < nv; ++v) {

@@ -6,6 +6,7 @@
 #include "geometry/thesis_format.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -19,7 +20,7 @@ namespace fascicle {
 
 namespace detail {
 
-std::string load_file(const std::string& path, const ReadOptions& options) {
+FileBytes::FileBytes(const std::string& path, const ReadOptions& options) {
   options.validate();
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw InputError(ErrorCode::file_missing, path + ": cannot open: " + std::strerror(errno));
@@ -44,10 +45,22 @@ std::string load_file(const std::string& path, const ReadOptions& options) {
     ::close(fd);
     throw InputError(ErrorCode::file_empty, path + ": line 1: file is empty (0 bytes)");
   }
-  std::string data(static_cast<std::size_t>(size), '\0');
+  if (S_ISREG(info.st_mode)) {
+    void* map = ::mmap(nullptr, static_cast<std::size_t>(size), PROT_READ, MAP_PRIVATE, fd, 0);
+    if (map != MAP_FAILED) {
+      ::close(fd);  // the mapping stays valid
+      ::madvise(map, static_cast<std::size_t>(size), MADV_SEQUENTIAL);  // read ahead, drop behind
+      mapping_ = map;
+      data_ = static_cast<const char*>(map);
+      size_ = static_cast<std::size_t>(size);
+      return;
+    }
+  }
+  // Not mappable (a device, a special file system): read it into memory.
+  copy_.assign(static_cast<std::size_t>(size), '\0');
   std::size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
+  while (done < copy_.size()) {
+    const ssize_t n = ::read(fd, copy_.data() + done, copy_.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
       const int err = errno;
@@ -59,9 +72,14 @@ std::string load_file(const std::string& path, const ReadOptions& options) {
     done += static_cast<std::size_t>(n);
   }
   ::close(fd);
-  data.resize(done);
-  if (data.empty()) throw InputError(ErrorCode::file_empty, path + ": line 1: file is empty (0 bytes)");
-  return data;
+  copy_.resize(done);
+  if (copy_.empty()) throw InputError(ErrorCode::file_empty, path + ": line 1: file is empty (0 bytes)");
+  data_ = copy_.data();
+  size_ = copy_.size();
+}
+
+FileBytes::~FileBytes() {
+  if (mapping_ != nullptr) ::munmap(mapping_, size_);
 }
 
 void check_declared_count(const ParseCursor& cursor, std::uint64_t count, std::uint64_t min_bytes,
@@ -117,7 +135,8 @@ PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& option
     soup.polygons.reserve(model.triangles.size());
     for (const Triangle& t : model.triangles) soup.polygons.push_back({t[0], t[1], t[2]});
   } else {
-    const std::string data = detail::load_file(path, options);
+    const detail::FileBytes file(path, options);
+    const std::string_view data = file.view();
     switch (format) {
       case MeshFormat::off: soup = detail::read_off(path, data, options); break;
       case MeshFormat::obj: soup = detail::read_obj(path, data, options); break;

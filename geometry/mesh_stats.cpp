@@ -1,5 +1,7 @@
 #include "geometry/mesh_stats.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <unordered_set>
 
@@ -17,6 +19,19 @@ BoundingBox bounding_box(const std::vector<Vec3>& points) {
     box.max = box.max.cwiseMax(p);
   }
   return box;
+}
+
+PrincipalAxes principal_axes(const std::vector<Vec3>& points) {
+  PrincipalAxes out;
+  if (points.empty()) return out;
+  for (const Vec3& p : points) out.mean += p;
+  out.mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Vec3& p : points) scatter += (p - out.mean) * (p - out.mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+  out.axes = eig.eigenvectors();
+  out.variances = eig.eigenvalues() / static_cast<double>(points.size());
+  return out;
 }
 
 double surface_area(const TriangleMesh& mesh) {

@@ -135,6 +135,10 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
   in.skip_byte_order_mark();
 
   // ---- header ----
+  // The first three bytes decide, before the first line's end is searched for (garbage may
+  // have none: the whole file would be read to find it).
+  if (in.data().substr(in.pos(), 3) != "ply")
+    in.fail_at_line(1, ErrorCode::unknown_format, "not a PLY file (first line is not 'ply')");
   const std::string_view magic = in.rest_of_line();
   if (magic != "ply") in.fail_at_line(1, ErrorCode::unknown_format, "not a PLY file (first line is not 'ply')");
   std::optional<Encoding> encoding;

@@ -9,8 +9,8 @@
 namespace fascicle {
 
 std::vector<Vec3> read_points(const std::string& path, const ReadOptions& options) {
-  const std::string data = detail::load_file(path, options);
-  return detail::read_points(path, data, options);
+  const detail::FileBytes file(path, options);
+  return detail::read_points(path, file.view(), options);
 }
 
 std::vector<Vec3> detail::read_points(const std::string& path, std::string_view data, const ReadOptions& options) {

@@ -542,7 +542,8 @@ Polylines read_polylines(const std::string& path, const ReadOptions& options) {
   if (ext != "vtk" && ext != "vtp" && ext != "obj" && ext != "csv")
     throw InputError(ErrorCode::unknown_format,
                      path + ": unknown polyline format '" + ext + "' (expected .vtk, .vtp, .obj or .csv)");
-  const std::string data = detail::load_file(path, options);
+  const detail::FileBytes file(path, options);
+  const std::string_view data = file.view();
   if (ext == "vtp") return VtpReader(path, data, options).read();
   if (ext == "csv") return read_csv(path, data, options);
   std::vector<Vec3> points;

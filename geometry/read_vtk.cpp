@@ -77,6 +77,10 @@ class VtkReader {
  private:
   void read_header() {
     in_.skip_byte_order_mark();
+    // "# " first, checked before the first line's end is searched for (garbage may have none:
+    // the whole file would be read to find it).
+    if (in_.data().substr(in_.pos(), 2) != "# ")
+      in_.fail_at_line(1, ErrorCode::unknown_format, "not a legacy VTK file (first line is not '# vtk DataFile Version ...')");
     const std::string_view first = in_.rest_of_line();
     if (first.substr(0, 2) != "# " || first.find("vtk") == std::string_view::npos ||
         first.find("DataFile") == std::string_view::npos)

@@ -41,8 +41,8 @@ int index_in_line(detail::ParseCursor& in, std::size_t point_count) {
 }  // namespace
 
 ThesisModel read_thesis_model(const std::string& path, const ReadOptions& options) {
-  const std::string data = detail::load_file(path, options);
-  return detail::read_thesis(path, data, options);
+  const detail::FileBytes file(path, options);
+  return detail::read_thesis(path, file.view(), options);
 }
 
 namespace detail {

@@ -4,8 +4,6 @@
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <cstdio>
 
 namespace fascicle {
@@ -74,13 +72,9 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
   if (mesh.positions.empty() || mesh.triangles.empty())
     throw TopologyError("automatic attachments: the mesh is empty");
   const std::size_t nv = mesh.positions.size();
-  Vec3 mean = Vec3::Zero();
-  for (const Vec3& p : mesh.positions) mean += p;
-  mean /= static_cast<double>(nv);
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Vec3& p : mesh.positions) cov += (p - mean) * (p - mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Vec3 axis = eig.eigenvectors().col(2);
+  const PrincipalAxes principal = principal_axes(mesh.positions);
+  const Vec3& mean = principal.mean;
+  Vec3 axis = principal.major();
   if (axis.z() < 0.0) axis = -axis;
   double lo = 1e300, hi = -1e300;
   std::vector<double> along(nv);

@@ -136,6 +136,31 @@ TEST_CASE("repair exit codes: command line, output and time limit", "[app]") {
   }
 }
 
+// repair, sphere and decompose share one "report on error" (app/report_file.h): each must leave a
+// report that says failed, with the message and the code's name, and no output.
+TEST_CASE("a failed repair, sphere or decompose still writes its report", "[app]") {
+  test::TempDir dir;
+  const std::string input = dir.file("torus.off");
+  write_triangle_mesh(input, make_torus(1.0, 0.2, 32, 12));
+  for (const char* command : {"repair", "sphere", "decompose"}) {
+    INFO(command);
+    const std::string out = dir.file(std::string(command) + "-out.vtk");  // a mesh or polylines
+    const std::string report = dir.file(std::string(command) + ".json");
+    const Run r = run(dir, std::string("--quiet ") + command + " '" + input + "' -o '" + out + "' --report '" + report + "'");
+    INFO("stderr: " << r.err);
+    CHECK(r.code == exit_code(ErrorCode::repair_failed));
+    CHECK_FALSE(fs::exists(out));
+    REQUIRE(fs::exists(report));
+    std::ifstream in(report);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    CHECK(j.at("status") == "failed");
+    CHECK(j.at("error_code") == "repair_failed");
+    CHECK(j.at("input_file") == input);
+    CHECK(j.at("error").get<std::string>().find("genus") != std::string::npos);
+    CHECK(r.err.find(j.at("error").get<std::string>()) != std::string::npos);
+  }
+}
+
 TEST_CASE("repair and convert succeed on good input with a complete report", "[app]") {
   test::TempDir dir;
   REQUIRE(run(dir, "sample -o '" + dir.file("sample.stl") + "'").code == 0);

@@ -137,6 +137,15 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   DecomposeOptions one;
   one.resolution = 1;
   CHECK_THROWS_AS(decompose_repaired(mesh, {}, one), OptionError);
+  // Each of fibres and resolution in range, their product (1e9 lattice points) not: the
+  // lattice's own check, which DecomposeOptions::validate runs.
+  DecomposeOptions product;
+  product.fibres = 1'000'000;
+  product.resolution = 1'000;
+  CHECK_THROWS_WITH(product.validate(), Catch::Contains("fibres x resolution"));
+  DecomposeOptions many;
+  many.fibres = 1'000'001;
+  CHECK_THROWS_WITH(many.validate(), Catch::Contains("fibres: at most 1000000"));
   DecomposeOptions backend;
   backend.backend = "quantum";
   CHECK_THROWS_AS(decompose_repaired(mesh, {}, backend), OptionError);

@@ -33,3 +33,32 @@ TEST_CASE("bounding box diagonal", "[geometry]") {
   CHECK(box.diagonal() == Approx(13.0));
   CHECK(bounding_box({}).diagonal() == 0.0);
 }
+
+TEST_CASE("principal axes of a rotated, offset box", "[geometry]") {
+  // Corners of a box with half extents 5, 2, 1 along three orthonormal directions, centred at a
+  // CT-like offset: the variances are 25, 4, 1 and the axes those directions (up to sign).
+  const Vec3 u = Vec3(1, 2, 2).normalized();
+  const Vec3 v = Vec3(2, -1, 0).normalized();
+  const Vec3 w = u.cross(v);
+  const Vec3 centre(1e4, -2e4, 3e3);
+  std::vector<Vec3> corners;
+  for (int a : {-1, 1})
+    for (int b : {-1, 1})
+      for (int c : {-1, 1}) corners.push_back(centre + 5.0 * a * u + 2.0 * b * v + 1.0 * c * w);
+  const PrincipalAxes axes = principal_axes(corners);
+  CHECK((axes.mean - centre).norm() < 1e-9);
+  CHECK(axes.variances.x() == Approx(1.0));
+  CHECK(axes.variances.y() == Approx(4.0));
+  CHECK(axes.variances.z() == Approx(25.0));
+  CHECK(std::abs(axes.major().dot(u)) == Approx(1.0));
+  CHECK(std::abs(axes.axes.col(1).dot(v)) == Approx(1.0));
+  CHECK(std::abs(axes.axes.col(0).dot(w)) == Approx(1.0));
+  CHECK((axes.axes.transpose() * axes.axes - Eigen::Matrix3d::Identity()).norm() < 1e-12);
+}
+
+TEST_CASE("principal axes of no point are the identity at the origin", "[geometry]") {
+  const PrincipalAxes axes = principal_axes({});
+  CHECK(axes.mean == Vec3::Zero());
+  CHECK(axes.axes == Eigen::Matrix3d::Identity());
+  CHECK(axes.variances == Vec3::Zero());
+}

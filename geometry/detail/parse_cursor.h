@@ -21,9 +21,29 @@
 
 namespace fascicle::detail {
 
-/// Reads the whole file into memory. Throws InputError: file_missing (absent, unreadable, a
-/// folder), too_large (above options.max_file_bytes), file_empty (0 bytes).
-std::string load_file(const std::string& path, const ReadOptions& options);
+/// The bytes of a file, for the readers. A regular file is mapped read-only (mmap), so its pages
+/// are read only when a reader reaches them: a reader that refuses a file at its first bad token
+/// or count touches a few pages, not the whole file, and a file that is read in full costs page
+/// cache (reclaimable) rather than a private copy. Where mapping is not possible the file is read
+/// into memory instead. A file truncated by another process while it is mapped ends the process
+/// with SIGBUS when a reader reaches the missing pages (docs/RELIABILITY.md, "Resource limits").
+class FileBytes {
+ public:
+  /// Opens and maps `path`. Throws InputError: file_missing (absent, unreadable, a folder),
+  /// too_large (above options.max_file_bytes, before anything is read), file_empty (0 bytes).
+  FileBytes(const std::string& path, const ReadOptions& options);
+  ~FileBytes();
+  FileBytes(const FileBytes&) = delete;
+  FileBytes& operator=(const FileBytes&) = delete;
+  /// The whole file.
+  std::string_view view() const { return {data_, size_}; }
+
+ private:
+  const char* data_ = nullptr;
+  std::size_t size_ = 0;
+  void* mapping_ = nullptr;  // the mmap'ed region, or null when `copy_` holds the bytes
+  std::string copy_;
+};
 
 /// Scalar types found in PLY and VTK files.
 enum class Scalar { i8, u8, i16, u16, i32, u32, i64, u64, f32, f64 };
