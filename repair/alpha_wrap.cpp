@@ -9,6 +9,7 @@
 
 #include "geometry/errors.h"
 
+#include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
 #include <csignal>
@@ -76,8 +77,13 @@ bool write_all(int fd, const void* data, std::size_t size) {
 
 }  // namespace
 
-std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup, double alpha, double offset,
-                                                        double seconds) {
+namespace {
+
+// One worker run: the wrap, or nullopt when the time ran out; `died` when the child ended without
+// sending a whole result (it crashed or CGAL threw).
+std::optional<TriangleMesh> wrap_in_worker(const TriangleMesh& soup, double alpha, double offset, double seconds,
+                                           bool& died) {
+  died = false;
   int fds[2];
   if (::pipe(fds) != 0) return alpha_wrap(soup, alpha, offset);  // no pipe: wrap unbounded
   const pid_t parent = ::getpid();
@@ -94,6 +100,11 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(1);
     ::close(fds[0]);
+    // The child reports only through the pipe and its exit status: whatever it would print (the
+    // dynamic loader's "Inconsistency detected" abort when a parent thread was inside dlopen at
+    // the fork, seen in rare runs) must not add lines to the program's one-line errors.
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    if (devnull >= 0) ::dup2(devnull, STDERR_FILENO);
     int status = 1;
     try {
       const TriangleMesh wrap = alpha_wrap(soup, alpha, offset);
@@ -133,8 +144,10 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   if (timed_out) return std::nullopt;
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || bytes.size() < 2 * sizeof(std::uint64_t))
-    throw TopologyError("alpha wrapping failed in its worker process", ErrorCode::repair_failed);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || bytes.size() < 2 * sizeof(std::uint64_t)) {
+    died = true;
+    return std::nullopt;
+  }
   std::uint64_t counts[2];
   std::memcpy(counts, bytes.data(), sizeof(counts));
   const std::size_t expected = sizeof(counts) + counts[0] * sizeof(Vec3) + counts[1] * sizeof(Triangle);
@@ -146,6 +159,24 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
   std::memcpy(static_cast<void*>(out.triangles.data()), bytes.data() + sizeof(counts) + counts[0] * sizeof(Vec3),
               counts[1] * sizeof(Triangle));
   return out;
+}
+
+}  // namespace
+
+std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup, double alpha, double offset,
+                                                        double seconds) {
+  // A worker that dies is run once more within the time left (a fork of a threaded process can
+  // inherit the loader mid-dlopen and abort; that is rare and does not repeat); a second death
+  // is the error.
+  const auto start = std::chrono::steady_clock::now();
+  for (int attempt = 0;; ++attempt) {
+    const double left = seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (left <= 0.0) return std::nullopt;
+    bool died = false;
+    std::optional<TriangleMesh> wrap = wrap_in_worker(soup, alpha, offset, left, died);
+    if (!died) return wrap;
+    if (attempt == 1) throw TopologyError("alpha wrapping failed in its worker process", ErrorCode::repair_failed);
+  }
 }
 
 }  // namespace fascicle::detail

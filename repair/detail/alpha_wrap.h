@@ -14,7 +14,8 @@ TriangleMesh alpha_wrap(const TriangleMesh& soup, double alpha, double offset);
 
 /// alpha_wrap() under a time limit: the wrap runs in a forked child process that sends the result
 /// back through a pipe; past `seconds` the child is killed and nullopt returned (CGAL's wrap
-/// cannot be interrupted otherwise). Throws TopologyError(repair_failed) if the child fails.
+/// cannot be interrupted otherwise). The child's standard error goes to /dev/null; a child that
+/// dies is run once more within the time left. Throws TopologyError(repair_failed) if it dies twice.
 std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup, double alpha, double offset,
                                                         double seconds);
 
