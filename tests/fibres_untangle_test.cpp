@@ -168,9 +168,9 @@ TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
 TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells comes out unfolded",
           "[fibres][untangle][data]") {
   FASCICLE_REQUIRE_DATA();
-  // VHM left gracilis: the settle leaves cells folded near both ends (7 on 2026-11-21).
+  // VHM left rectus femoris: the settle leaves 5 cells folded (2026-11-21).
   const PolygonSoup soup =
-      read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_Gracilis_smooth.stl");
+      read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_RectusFemoris_smooth.stl");
   DecomposeOptions options;
   options.untangle_cells = false;
   const Decomposition folded = decompose(soup, {}, options);
