@@ -43,11 +43,6 @@ namespace {
 
 constexpr int kBlock = 4096;
 
-int find_root(std::vector<int>& parent, int v) {
-  while (parent[v] != v) v = parent[v] = parent[parent[v]];
-  return v;
-}
-
 class MultigridSolver final : public SpringSolver {
  public:
   MultigridSolver(const SpringSystem& system, const SettleOptions& options, const LatticeShape& shape)
@@ -164,21 +159,6 @@ class MultigridSolver final : public SpringSolver {
   std::string backend() const override { return "multigrid-" + std::to_string(multigrid_->levels()); }
 
  private:
-  static void check_anchored(const SpringSystem& system) {
-    const int n = static_cast<int>(system.positions.size());
-    std::vector<int> parent(n);
-    for (int i = 0; i < n; ++i) parent[i] = i;
-    for (const Spring& s : system.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
-    std::vector<char> anchored(n, 0);
-    for (int i = 0; i < n; ++i)
-      if (system.fixed[i]) anchored[find_root(parent, i)] = 1;
-    for (int i = 0; i < n; ++i)
-      if (!system.fixed[i] && !anchored[find_root(parent, i)])
-        throw SolverError("static: point " + std::to_string(i) +
-                          " is in a part of the spring system with no fixed point, so its "
-                          "equilibrium is not unique; fix a point there or use --solver verlet");
-  }
-
   // x_f += u with L u = the forces of the springs at zero rest length: the free points move to
   // the harmonic interpolation of the fixed points (the zero-rest-length equilibrium), solved
   // by V-cycles to a relative residual of 1e-8 (at most 30 cycles).

@@ -31,6 +31,29 @@
 #include <limits>
 
 namespace fascicle::springs::detail {
+
+namespace {
+int find_root(std::vector<int>& parent, int v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+}  // namespace
+
+void check_anchored(const SpringSystem& system) {
+  const int n = static_cast<int>(system.positions.size());
+  std::vector<int> parent(n);
+  for (int i = 0; i < n; ++i) parent[i] = i;
+  for (const Spring& s : system.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
+  std::vector<char> anchored(n, 0);
+  for (int i = 0; i < n; ++i)
+    if (system.fixed[i]) anchored[find_root(parent, i)] = 1;
+  for (int i = 0; i < n; ++i)
+    if (!system.fixed[i] && !anchored[find_root(parent, i)])
+      throw SolverError("static: point " + std::to_string(i) +
+                        " is in a part of the spring system with no fixed point, so its "
+                        "equilibrium is not unique; fix a point there or use --solver verlet");
+}
+
 namespace {
 
 constexpr int kBlock = 2048;
@@ -124,25 +147,6 @@ class NewtonSolver final : public SpringSolver {
   bool stalled() const override { return stalled_; }
 
  private:
-  static int find_root(std::vector<int>& parent, int v) {
-    while (parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-  }
-
-  static void check_anchored(const SpringSystem& system) {
-    const int n = static_cast<int>(system.positions.size());
-    std::vector<int> parent(n);
-    for (int i = 0; i < n; ++i) parent[i] = i;
-    for (const Spring& s : system.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
-    std::vector<char> anchored(n, 0);
-    for (int i = 0; i < n; ++i)
-      if (system.fixed[i]) anchored[find_root(parent, i)] = 1;
-    for (int i = 0; i < n; ++i)
-      if (!system.fixed[i] && !anchored[find_root(parent, i)])
-        throw SolverError("static: point " + std::to_string(i) +
-                          " is in a part of the spring system with no fixed point, so its "
-                          "equilibrium is not unique; fix a point there or use --solver verlet");
-  }
 
   template <typename Body>
   void for_blocks(Body&& body) {

@@ -28,6 +28,10 @@ struct SpringRows {
 /// Builds the compressed rows of `system` (used by the general Verlet, Newton and GPU paths).
 SpringRows spring_rows(const SpringSystem& system);
 
+/// Throws SolverError when a free point lies in a part of the spring graph without a fixed
+/// point (its static equilibrium is not unique). Used by the static solvers.
+void check_anchored(const SpringSystem& system);
+
 /// Masses, damping and time step from the options (see SettleOptions).
 VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleOptions& options);
 
