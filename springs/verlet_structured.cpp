@@ -19,6 +19,9 @@
 // force is summed in the same order whatever the tiles: the result does not depend on the
 // thread count or the grain (tested bitwise). Compared with gathering (each point evaluating
 // all its springs) this halves the inverse square roots, which bound the model-26 iteration.
+// On model-26 lattices the three springs of a row into one target row (dx = -1, 0, +1) are
+// summed in registers before the push, so each target row gets one aligned read-modify-write
+// per vector instead of three overlapping unaligned ones (which stall store forwarding).
 //
 // This path needs AVX-512: a row is one loop written with intrinsics (fused_row_avx512: own
 // springs summed in registers, integration in the same pass) and takes 1 / sqrt from
@@ -230,6 +233,9 @@ struct FusedRow {
   double ku[kMaxDirections];
   double* push[kMaxDirections][3];  // the target row's accumulators at point 0 (null: not pushed)
   int along_x;                      // the direction (1, 0, 0), -1 when not valid
+  // Model-26: the 12 other directions in 4 groups of one target row each, (dx = -1, 0, +1).
+  int group[4][3];
+  double* group_push[4][3];         // the group's target row (null: not pushed)
   const double* a;                  // per-point a, b (null: au, bu)
   const double* b;
   double au, bu;
@@ -270,6 +276,9 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
   const long nx = r.nx;
   const double *x0 = r.x[0], *x1 = r.x[1], *x2 = r.x[2];
   __m512d carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  __m512d group_carry[4][3];
+  for (auto& g : group_carry)
+    for (auto& c : g) c = _mm512_setzero_pd();
   __m512i largest = _mm512_setzero_si512();
   __m512d fv = _mm512_setzero_pd();
   for (long i = 0; i < nx; i += 8) {
@@ -280,6 +289,56 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
     const __m512d sz = load8(row_mask, x2 + i);
     __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
     __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+    // One spring direction: its force f = w l (zero in lanes without a spring) added to the
+    // own point's sum; returned in f.
+    auto spring = [&](int d, __m512d f[3]) __attribute__((target("avx512f"), always_inline)) {
+      // Lanes whose target exists: i + dx in [0, nx).
+      __mmask8 m = row_mask;
+      if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
+      if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
+      const long q = i + r.offset[d];
+      const __m512d lx = _mm512_maskz_sub_pd(m, load8(m, x0 + q), sx);
+      const __m512d ly = _mm512_maskz_sub_pd(m, load8(m, x1 + q), sy);
+      const __m512d lz = _mm512_maskz_sub_pd(m, load8(m, x2 + q), sz);
+      const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
+      const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
+      const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
+      f[0] = _mm512_mul_pd(w, lx);
+      f[1] = _mm512_mul_pd(w, ly);
+      f[2] = _mm512_mul_pd(w, lz);
+      for (int c = 0; c < 3; ++c) own[c] = _mm512_add_pd(own[c], f[c]);
+    };
+    if constexpr (Directions == kMaxDirections) {
+      // Model-26. The three directions of a group push into one target row at i - 1, i and
+      // i + 1: summed in registers first (dx = +1 shifted one lane up with a carry into the next
+      // vector, dx = -1 one lane down, its lane 0 going to the previous vector's last point),
+      // so each group makes one aligned read-modify-write of the target per vector. Pushing the
+      // three directions one by one made overlapping unaligned stores and loads of the same
+      // lines, which the processor cannot forward: that stall bounded the model-26 row.
+      // (A row around the tile, not integrated, needs no along-x springs: they push nowhere.)
+      if (r.along_x >= 0) spring(r.along_x, along);
+#pragma GCC unroll 4
+      for (int g = 0; g < 4; ++g) {
+        __m512d fm[3], f0[3], fp[3];
+        const __m512d zero = _mm512_setzero_pd();
+        for (int c = 0; c < 3; ++c) fm[c] = f0[c] = fp[c] = zero;
+        if (r.valid[r.group[g][0]]) spring(r.group[g][0], fm);
+        if (r.valid[r.group[g][1]]) spring(r.group[g][1], f0);
+        if (r.valid[r.group[g][2]]) spring(r.group[g][2], fp);
+        if (!r.group_push[g][0]) continue;
+        for (int c = 0; c < 3; ++c) {
+          const __m512d up = _mm512_castsi512_pd(
+              _mm512_alignr_epi64(_mm512_castpd_si512(fp[c]), _mm512_castpd_si512(group_carry[g][c]), 7));
+          const __m512d down = _mm512_castsi512_pd(
+              _mm512_alignr_epi64(_mm512_castpd_si512(zero), _mm512_castpd_si512(fm[c]), 1));
+          group_carry[g][c] = fp[c];
+          double* target = r.group_push[g][c] + i;
+          const __m512d sum = _mm512_add_pd(_mm512_add_pd(f0[c], up), down);
+          store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
+          if (i > 0) target[-1] -= _mm512_cvtsd_f64(fm[c]);
+        }
+      }
+    } else {
 #pragma GCC unroll 13
     for (int d = 0; d < Directions; ++d) {
       if (!r.valid[d]) continue;
@@ -310,6 +369,7 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
           }
         }
       }
+    }
     }
     if (!r.integrate) continue;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
@@ -579,6 +639,22 @@ class StructuredVerlet final : public SpringSolver {
       if (along_x && f.valid[d] && integrate) f.along_x = d;
       const bool push = f.valid[d] && !along_x && tile.holds(j + dy, k + dz);
       for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.row(c, target) : nullptr;
+    }
+    if (directions_ == kMaxDirections) {
+      // Groups of one target row (dy, dz), slots by dx + 1.
+      int groups = 0;
+      long key[4];
+      for (int d = 0; d < directions_; ++d) {
+        const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
+        if (dy == 0 && dz == 0) continue;  // along x
+        const long kd = dy + 3L * dz;
+        int g = 0;
+        while (g < groups && key[g] != kd) ++g;
+        if (g == groups) key[groups++] = kd;
+        f.group[g][dx + 1] = d;
+        if (dx == 0)  // (dx = +-1 are not valid in a row of one point)
+          for (int c = 0; c < 3; ++c) f.group_push[g][c] = f.push[d][c];
+      }
     }
     f.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
     f.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
