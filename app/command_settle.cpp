@@ -41,6 +41,7 @@ struct SettleArgs {
   double mass = 0.0;
   double density = 1.1;
   double dt = 0.0;
+  int coarse_start_points = springs::SettleOptions{}.coarse_start_points;
 };
 
 springs::SettleOptions settle_options(const SettleArgs& args) {
@@ -56,6 +57,7 @@ springs::SettleOptions settle_options(const SettleArgs& args) {
   options.max_iterations = args.max_iterations;
   options.mass = args.mass;
   options.dt = args.dt;
+  options.coarse_start_points = args.coarse_start_points;
   if (args.damping == "estimate") {
     options.damping_mode = springs::DampingMode::estimate;
   } else if (args.damping == "critical") {
@@ -205,6 +207,8 @@ void run_settle(const SettleArgs& args) {
     j["residual_history"] = report.residual_history;
     j["seconds"] = report.seconds;
     j["setup_seconds"] = report.setup_seconds;
+    j["start_levels"] = report.start_levels;
+    j["start_iterations"] = report.start_iterations;
     j["mass"] = mass;
     if (options.solver == springs::SolverKind::verlet) {
       j["dt"] = report.dt;
@@ -230,6 +234,10 @@ void add_settle_command(CLI::App& app) {
   cmd->add_option("--static-method", args->static_method,
                   "static solver: momentum, newton, local-global or multigrid (lattices only; other "
                   "systems run momentum)")
+      ->capture_default_str();
+  cmd->add_option("--coarse-start", args->coarse_start_points,
+                  "static momentum on a lattice: start from the settled lattice of every other point, "
+                  "recursively while a lattice has more than this many points (0: off)")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend,
                   "Compute backend: cpu, gl (OpenGL compute shaders), gl-gs (the thesis's geometry-shader method) "

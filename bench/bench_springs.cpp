@@ -48,6 +48,7 @@ struct SpringsBenchArgs {
   double rest_dt = 0.01;        // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
   int local_global_max_size = 20;  // the sparse Cholesky factor grows too fast above this
   bool plain_kernel = false;    // structured path without the AVX-512 spring loop
+  double coarse_start_tolerance = SettleOptions{}.coarse_start_tolerance;  // static momentum's coarse start
 };
 
 std::vector<int> parse_list(const std::string& text, const std::string& option) {
@@ -285,6 +286,10 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
     s.options.solver = SolverKind::static_equilibrium;
     s.options.static_method = StaticMethod::momentum;
     solvers.push_back(s);
+    s.name = "static-momentum-fine";  // without the coarse start (coarse_start.h)
+    s.options.coarse_start_points = 0;
+    solvers.push_back(s);
+    s.options.coarse_start_points = SettleOptions{}.coarse_start_points;
     s.name = "static-newton";
     s.options.static_method = StaticMethod::newton;
     solvers.push_back(s);
@@ -317,6 +322,7 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
         }
         SettleOptions options = entry.options;
         options.tolerance = 1e-6;
+        options.coarse_start_tolerance = args.coarse_start_tolerance;
         const std::string load_before = load_average();
         const double c0 = process_cpu_seconds();
         const auto t0 = clock_type::now();
@@ -355,9 +361,14 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
           else std::snprintf(buffer, sizeof buffer, "%10.3f", v);
           return std::string(buffer);
         };
-        std::printf("%5d %6d %-22s %10.3f %s %s %s %12d  wall %.1f s, cpu %.1f s, load %s%s\n", n,
+        const std::string start =
+            solver->start_levels() > 0 ? ", coarse start " + std::to_string(solver->start_levels()) + " levels " +
+                                             std::to_string(solver->start_iterations()) + " iterations"
+                                       : "";
+        std::printf("%5d %6d %-22s %10.3f %s %s %s %12d  wall %.1f s, cpu %.1f s, load %s%s%s\n", n,
                     static_cast<int>(model), entry.name.c_str(), setup, cell(reached[0]).c_str(),
                     cell(reached[1]).c_str(), cell(reached[2]).c_str(), iterations, wall, cpu, load_before.c_str(),
+                    start.c_str(),
                     status == "ok" ? "" : ("  (" + status + ", residual " + std::to_string(residual) + ")").c_str());
         std::fflush(stdout);
         for (int k = 0; k < 3; ++k)
@@ -366,6 +377,8 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
                              {"seconds", reached[k] >= 0 ? nlohmann::json(reached[k]) : nlohmann::json(nullptr)},
                              {"setup_seconds", setup}, {"iterations", iterations},
                              {"inner_iterations", solver->inner_iterations()}, {"status", status},
+                             {"start_levels", solver->start_levels()},
+                             {"start_iterations", solver->start_iterations()},
                              {"final_residual", residual}, {"wall_seconds", wall}, {"cpu_seconds", cpu},
                              {"load_average_before", load_before}});
       }
@@ -412,13 +425,16 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade,templates")->capture_default_str();
   cmd->add_option("--trade-limit", args->trade_limit, "Seconds per trade run")->capture_default_str();
   cmd->add_option("--trade-solvers", args->trade_solvers,
-                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-newton, static-multigrid, "
+                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-momentum-fine, static-newton, static-multigrid, "
                   "static-local-global, static-local-global-plain); default all");
   cmd->add_option("--trade-models", args->trade_models, "Spring models for the trade (6, 26)")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();
   cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")->capture_default_str();
+  cmd->add_option("--coarse-start-tolerance", args->coarse_start_tolerance,
+                  "Relative residual of the coarse lattices of static-momentum's coarse start")
+      ->capture_default_str();
   cmd->add_flag("--plain-kernel", args->plain_kernel,
                "Structured path: the plain C++ spring loop instead of AVX-512 (for comparison)");
   cmd->add_option("--json", args->json, "Write the records as JSON here");

@@ -73,6 +73,10 @@ void SettleOptions::validate() const {
   if (!(multigrid_step > 0.0 && multigrid_step <= 2.0))
     throw OptionError("multigrid_step: must be in (0, 2], got " + str(multigrid_step));
   MultigridOptions multigrid;
+  if (coarse_start_points != 0 && coarse_start_points < 8)
+    throw OptionError("coarse_start_points: must be 0 (off) or >= 8, got " + std::to_string(coarse_start_points));
+  if (!(coarse_start_tolerance > 0.0 && coarse_start_tolerance < 1.0))
+    throw OptionError("coarse_start_tolerance: must be in (0, 1), got " + str(coarse_start_tolerance));
   multigrid.smoothing_steps = multigrid_smoothing_steps;
   multigrid.coarsest_points = multigrid_coarsest_points;
   multigrid.validate();
@@ -89,6 +93,8 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
       return detail::make_multigrid_solver(system, options, *shape);
     // momentum, or multigrid on a system that is not a lattice grid: the momentum method
     if (shape && options.backend != Backend::general) {
+      auto started = detail::make_coarse_started_momentum(system, options, *shape);
+      if (started) return started;
       auto solver = detail::make_structured_verlet(system, options, *shape, true);
       if (solver) return solver;
     }
@@ -116,6 +122,8 @@ SettleReport settle(SpringSystem& system, const SettleOptions& options, const La
   report.backend = solver->backend();
   report.dt = solver->time_step();
   report.mean_damping = solver->mean_damping();
+  report.start_levels = solver->start_levels();
+  report.start_iterations = solver->start_iterations();
   if (options.record_energy) report.energy_history.push_back(solver->energy());
   double residual = solver->residual();
   report.residual_history.push_back(residual);

@@ -13,7 +13,9 @@
 ///   kernels (unit masses, step 1 / L with L = 1.25 x a Lanczos estimate of the stiffness's largest
 ///   eigenvalue, capped by its Gershgorin bound; Nesterov's
 ///   momentum k / (k + 3), restarted whenever the velocity opposes the force: O'Donoghue and
-///   Candes 2015, "Adaptive restart for accelerated gradient schemes"). Method `newton`:
+///   Candes 2015, "Adaptive restart for accelerated gradient schemes"). On a lattice of more
+///   than coarse_start_points points it starts from the settled lattice of every other point,
+///   interpolated (coarse_start.h; recursively). Method `newton`:
 ///   truncated Newton with matrix-free block-Jacobi preconditioned conjugate gradients and an
 ///   Armijo line search (see newton_solver.cpp). Method `local-global`: the
 ///   local-global iteration of Liu, Bargteil, O'Brien
@@ -117,6 +119,13 @@ struct SettleOptions {
   int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each
                                       ///< coarse correction, 1..20 (default 1: fewer iterations
                                       ///< and less time than 2 at 30^3 model-6 and 40^3 model-26)
+  int coarse_start_points = 4096;  ///< static momentum on a lattice: start from the settled
+                                  ///< lattice of every other point, interpolated (coarse_start.h),
+                                  ///< recursively while a lattice has more than this many points;
+                                  ///< 0 = off, else >= 8 (default 4096)
+  double coarse_start_tolerance = 1e-6;  ///< relative residual the coarse lattices are settled to
+                                         ///< (at least the tolerance), in (0, 1) (default 1e-6: model-26
+                                         ///< lattices need accurate coarse solutions, docs/BENCHMARKS.md)
   int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
                                          ///< solved directly, 8..200000 (default 4096)
 
@@ -140,6 +149,9 @@ struct SettleReport {
   double seconds = 0.0;        ///< iterating (wall time, excluding setup)
   double dt = 0.0;             ///< Verlet time step used
   double mean_damping = 0.0;   ///< Verlet mean damping coefficient used
+  int start_levels = 0;        ///< static momentum: coarse lattices settled for the start
+                               ///< (coarse_start.h; their time is in setup_seconds)
+  int start_iterations = 0;    ///< iterations on those coarse lattices
 };
 
 /// The shape of a lattice, for the structured path.
@@ -172,6 +184,9 @@ class SpringSolver {
   /// True when the last step could not make progress in double precision (the solve is then at
   /// its attainable accuracy; further steps change nothing).
   virtual bool stalled() const { return false; }
+  /// Coarse lattices settled for the start and their iterations (coarse_start.h); 0 without.
+  virtual int start_levels() const { return 0; }
+  virtual int start_iterations() const { return 0; }
 };
 
 /// Builds a solver for `system` (validated; copied). `shape`, when given, describes `system` as

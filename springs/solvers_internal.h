@@ -55,6 +55,13 @@ double largest_stiffness_eigenvalue(const SpringSystem& system, int steps);
 /// stretched by its rest length (or 1e-300 when that is 0).
 double energy_floor(const SpringSystem& system);
 
+/// The momentum static solver on the structured path, started from the settled coarse lattice
+/// (coarse_start.h); nullptr when the lattice does not qualify (too small, coarse start off, not a
+/// structured lattice).
+std::unique_ptr<SpringSolver> make_coarse_started_momentum(const SpringSystem& system,
+                                                           const SettleOptions& options,
+                                                           const LatticeShape& shape);
+
 /// Verlet solvers; with `momentum` the same kernels run the momentum static solver.
 std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
                                                   const SettleOptions& options, bool momentum = false);

@@ -2,6 +2,7 @@
 // stability at extreme parameters, scale invariance, divergence errors.
 
 #include "geometry/errors.h"
+#include "springs/coarse_start.h"
 #include "springs/lattice.h"
 #include "springs/multigrid.h"
 #include "springs/settle.h"
@@ -710,4 +711,91 @@ TEST_CASE("static multigrid options and errors", "[springs][multigrid]") {
   statics.static_method = StaticMethod::multigrid;
   SpringSystem system = free_lattice.system;
   CHECK_THROWS_AS(settle(system, statics, &free_shape), SolverError);
+}
+
+TEST_CASE("the coarse start reproduces a rigid motion and reaches the fine solve's equilibrium", "[springs][solver]") {
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    for (int n : {19, 20}) {  // odd: steps of 2; even: one step of 1 per axis
+      INFO("model-" << static_cast<int>(model) << ", n = " << n);
+      // Boundary moved rigidly, interior left behind: the coarse lattice's equilibrium is the
+      // same rigid motion, and so is its interpolation (any affine map is reproduced exactly).
+      Lattice lattice = regular_lattice(n, model, 1.0 / (n - 1), 1.0, true);
+      const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.4, Vec3(1.0, 2.0, 3.0).normalized()).toRotationMatrix();
+      const Vec3 shift(0.3, -0.2, 0.7);
+      std::vector<Vec3> rigid = lattice.system.positions;
+      for (std::size_t i = 0; i < rigid.size(); ++i) {
+        rigid[i] = rotation * rigid[i] + shift;
+        if (lattice.system.fixed[i]) lattice.system.positions[i] = rigid[i];
+      }
+      SettleOptions options;
+      options.solver = SolverKind::static_equilibrium;
+      options.tolerance = 1e-10;
+      options.coarse_start_tolerance = 1e-11;  // the coarse lattices to 1e-10 too
+      options.coarse_start_points = 500;
+      const LatticeShape shape = shape_of(lattice);
+      SpringSystem started = lattice.system;
+      const CoarseStartReport report = coarse_start(started, shape, options);
+      CHECK(report.levels == 2);  // n^3 -> (n/2 + 1)^3 -> 6^3 (216 <= 500)
+      CHECK(report.iterations > 0);
+      CHECK(max_distance(started.positions, rigid) < 1e-8);
+      for (std::size_t i = 0; i < rigid.size(); ++i)
+        if (lattice.system.fixed[i]) CHECK(started.positions[i] == lattice.system.positions[i]);
+    }
+    // The bench problem (model-26: a unique equilibrium): with and without the coarse start the
+    // solve ends within 1e-6 spacings of the same positions, and the start is reported.
+    if (model == SpringModel::model26) {
+      const Lattice lattice = moved_cube(20, model);
+      const LatticeShape shape = shape_of(lattice);
+      SettleOptions options;
+      options.solver = SolverKind::static_equilibrium;
+      options.tolerance = 1e-9;
+      SpringSystem a = lattice.system, b = lattice.system;
+      options.coarse_start_points = 2000;  // 20^3 -> 11^3 (1331 points): one level
+      const SettleReport ra = settle(a, options, &shape);
+      options.coarse_start_points = 0;
+      const SettleReport rb = settle(b, options, &shape);
+      CHECK(ra.converged);
+      CHECK(rb.converged);
+      CHECK(ra.start_levels == 1);
+      CHECK(ra.start_iterations > 0);
+      CHECK(rb.start_levels == 0);
+      CHECK(max_distance(a.positions, b.positions) < 1e-6 / 19);
+    }
+  }
+}
+
+TEST_CASE("the coarse start declines what is not a full lattice and checks its options", "[springs][solver]") {
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.coarse_start_points = 100;
+  // Too small a side (4 < 5): unchanged.
+  {
+    Lattice lattice = regular_lattice(4, SpringModel::model6, 1.0, 1.0, true);
+    SpringSystem s = lattice.system;
+    CHECK(coarse_start(s, shape_of(lattice), options).levels == 0);
+    CHECK(s.positions == lattice.system.positions);
+  }
+  // A spring missing: unchanged.
+  {
+    Lattice lattice = regular_lattice(9, SpringModel::model6, 1.0, 1.0, true);
+    lattice.system.springs.erase(lattice.system.springs.begin() + 400);
+    SpringSystem s = lattice.system;
+    CHECK(coarse_start(s, shape_of(lattice), options).levels == 0);
+    CHECK(s.positions == lattice.system.positions);
+  }
+  // A model-6 lattice described as model-26: its diagonal springs are missing, unchanged.
+  {
+    Lattice lattice = regular_lattice(9, SpringModel::model6, 1.0, 1.0, true);
+    LatticeShape shape = shape_of(lattice);
+    shape.model = SpringModel::model26;
+    SpringSystem s = lattice.system;
+    CHECK(coarse_start(s, shape, options).levels == 0);
+    CHECK(s.positions == lattice.system.positions);
+  }
+  SettleOptions bad;
+  bad.coarse_start_points = 3;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
+  bad.coarse_start_points = 0;
+  bad.coarse_start_tolerance = 1.0;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
 }
