@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <chrono>
@@ -143,13 +144,57 @@ double streamed_bytes(const Lattice& lattice, const std::string& backend) {
   return n * (24.0 + 4.0 + 24.0) + entries * 20.0 + n * (24.0 + 24.0 + 24.0 + 16.0 + 1.0 + 24.0);
 }
 
+// The compute limit of the structured kernel: every thread steps its own 16^3 lattice (about
+// 200 KB of positions, held in the second-level cache), so no iteration waits for memory.
+// Returns springs evaluated per second by all threads together; a large lattice's "compute ms"
+// is its spring count over this rate (the rows at a lattice's faces have fewer springs, so the
+// rate is per spring, not per point).
+double springs_per_second_in_cache(SpringModel model, double min_seconds) {
+  const int threads = std::max(1, tbb::this_task_arena::max_concurrency());
+  std::vector<Lattice> lattices;
+  std::vector<std::unique_ptr<SpringSolver>> solvers;
+  SettleOptions options;
+  options.backend = Backend::structured;
+  options.tolerance = 0.0;
+  options.energy_interval = 1 << 30;
+  for (int t = 0; t < threads; ++t) lattices.push_back(bench_lattice(16, model, 0.01));
+  for (int t = 0; t < threads; ++t) {
+    const LatticeShape shape = shape_of(lattices[t]);
+    solvers.push_back(make_solver(lattices[t].system, options, &shape));
+  }
+  auto run = [&](int steps) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, threads, 1), [&](const tbb::blocked_range<int>& r) {
+      for (int t = r.begin(); t != r.end(); ++t)
+        for (int i = 0; i < steps; ++i) solvers[t]->step();
+    }, tbb::simple_partitioner());
+  };
+  run(20);
+  int steps = 100;
+  for (;;) {
+    const auto t0 = clock_type::now();
+    run(steps);
+    const double seconds = seconds_since(t0);
+    if (seconds >= min_seconds || steps > (1 << 20))
+      return static_cast<double>(threads) * steps * lattices[0].system.springs.size() / seconds;
+    steps *= 2;
+  }
+}
+
 void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& records) {
   std::printf("\n== ms per Verlet iteration (thesis tables 7.1, 7.2: 2011 CPU 100^3 model-6 274 ms, model-26 907 ms)\n");
   std::printf("   (structured spring loop: %s; cpu ms = processor time of all threads per iteration;\n"
               "    load average before: %s)\n",
               springs::detail::structured_simd_active() ? "AVX-512" : "plain C++", load_average().c_str());
-  std::printf("%6s %6s %-19s %10s %10s %10s %12s %8s\n", "n", "model", "backend", "ms/iter", "cpu ms", "MB/iter",
-              "stream ms", "ratio");
+  double in_cache_rate[2] = {0.0, 0.0};  // model-6, model-26: springs per second, all threads
+  if (springs::detail::structured_simd_active() || args.plain_kernel) {
+    in_cache_rate[0] = springs_per_second_in_cache(SpringModel::model6, args.min_seconds);
+    in_cache_rate[1] = springs_per_second_in_cache(SpringModel::model26, args.min_seconds);
+    std::printf("   compute limit (structured kernel, each of %d threads on its own 16^3 lattice in cache): "
+                "model-6 %.0f, model-26 %.0f million springs/s\n",
+                std::max(1, tbb::this_task_arena::max_concurrency()), in_cache_rate[0] / 1e6, in_cache_rate[1] / 1e6);
+  }
+  std::printf("%6s %6s %-19s %10s %10s %10s %12s %8s %11s %8s\n", "n", "model", "backend", "ms/iter", "cpu ms",
+              "MB/iter", "stream ms", "ratio", "compute ms", "ratio");
   for (int n : parse_list(args.sizes, "sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
       std::unique_ptr<Lattice> lattice;
@@ -185,14 +230,21 @@ void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& recor
         const double cpu_ms = 1e3 * (process_cpu_seconds() - c0) / iterations;
         const double bytes = streamed_bytes(*lattice, solver->backend());
         const double stream_ms = 1e3 * bytes / (triad * 1e9);
-        std::printf("%6d %6d %-19s %10.3f %10.3f %10.1f %12.3f %8.2f\n", n, static_cast<int>(model),
+        const double rate = in_cache_rate[model == SpringModel::model6 ? 0 : 1];
+        const bool structured = solver->backend().rfind("structured", 0) == 0;
+        const double compute_ms = structured && rate > 0.0 ? 1e3 * lattice->system.springs.size() / rate : 0.0;
+        std::printf("%6d %6d %-19s %10.3f %10.3f %10.1f %12.3f %8.2f", n, static_cast<int>(model),
                     solver->backend().c_str(), ms, cpu_ms, bytes / 1e6, stream_ms, ms / stream_ms);
+        if (compute_ms > 0.0) std::printf(" %11.3f %8.2f", compute_ms, ms / compute_ms);
+        std::printf("\n");
         std::fflush(stdout);
         records.push_back({{"section", "speed"}, {"n", n}, {"model", static_cast<int>(model)}, {"solver", "verlet"},
                            {"backend", solver->backend()}, {"ms_per_iteration", ms}, {"cpu_ms_per_iteration", cpu_ms},
                            {"spring_loop", springs::detail::structured_simd_active() ? "avx512" : "plain"},
                            {"load_average", load_average()}, {"iterations_timed", iterations},
-                           {"streamed_bytes", bytes}, {"stream_ms", stream_ms}, {"ratio_to_stream", ms / stream_ms}});
+                           {"streamed_bytes", bytes}, {"stream_ms", stream_ms}, {"ratio_to_stream", ms / stream_ms},
+                           {"compute_ms", compute_ms > 0.0 ? nlohmann::json(compute_ms) : nlohmann::json(nullptr)},
+                           {"ratio_to_compute", compute_ms > 0.0 ? nlohmann::json(ms / compute_ms) : nlohmann::json(nullptr)}});
       }
     }
   }
