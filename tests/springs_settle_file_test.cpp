@@ -151,3 +151,49 @@ TEST_CASE("fascicle settle on a thesis-format lattice", "[springs][settle][progr
   CHECK(test::run_command(test::program() + " --quiet settle " + input + " --damping soft -o " + output +
                           " 2>/dev/null") == exit_code(ErrorCode::invalid_option));
 }
+
+TEST_CASE("fascicle settle --coarse-start", "[springs][settle][program]") {
+  if (!std::filesystem::exists(test::program())) {
+    WARN("skipped: " << test::program() << " is not built");
+    return;
+  }
+  test::TempDir dir;
+  LatticeOptions options;
+  options.kind = TemplateKind::curved;
+  options.fibres = 36;  // 6 x 6 fibres of 9 points: 324 points
+  options.resolution = 9;
+  options.model = SpringModel::model26;
+  const Lattice lattice = build_lattice(options);
+  const std::string input = dir.file("lattice.txt");
+  write_thesis_model(input, to_thesis_model(lattice));
+  std::string targets_text;
+  for (int i = 0; i < lattice.point_count(); ++i)
+    if (lattice.system.fixed[i]) {
+      const Vec3 p = lattice.system.positions[i];
+      targets_text += std::to_string(i) + " " + std::to_string(1.2 * p.x()) + " " + std::to_string(1.1 * p.y()) +
+                      " " + std::to_string(p.z() + 0.1 * p.x()) + "\n";
+    }
+  write_text(dir.file("targets.txt"), targets_text);
+  const std::string base = test::program() + " --quiet settle " + input + " --targets " + dir.file("targets.txt") +
+                           " --solver static --tolerance 1e-9";
+  std::vector<ThesisModel> settled;
+  for (int points : {100, 0}) {  // 6 x 6 x 9 = 324 points > 100 -> one coarse lattice of 4 x 4 x 5
+    INFO("--coarse-start " << points);
+    const std::string out = dir.file("out" + std::to_string(points) + ".txt"), report = dir.file("r.json");
+    REQUIRE(test::run_command(base + " --coarse-start " + std::to_string(points) + " -o " + out + " --report " +
+                              report) == 0);
+    std::ifstream in(report);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    CHECK(j["converged"] == true);
+    CHECK(j["start_levels"] == (points == 0 ? 0 : 1));  // 4 x 4 x 5 has sides below 5: one level
+    if (points != 0) CHECK(j["start_iterations"].get<int>() > 0);
+    settled.push_back(read_thesis_model(out));
+  }
+  double largest = 0.0;
+  for (std::size_t i = 0; i < settled[0].points.size(); ++i)
+    largest = std::max(largest, (settled[0].points[i] - settled[1].points[i]).norm());
+  CHECK(largest < 1e-6);
+  CHECK(test::run_command(base + " --coarse-start 3 -o " + dir.file("bad.txt") + " 2>/dev/null") ==
+        exit_code(ErrorCode::invalid_option));
+  CHECK(!std::filesystem::exists(dir.file("bad.txt")));
+}
