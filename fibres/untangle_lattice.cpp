@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 
 namespace fascicle {
@@ -21,6 +22,8 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("end_shift: must be in [0, 1), got " + std::to_string(end_shift));
   if (!(contact_weight > 0.0 && contact_weight < 1e12))
     throw OptionError("untangle contact_weight: must be in (0, 1e12), got " + std::to_string(contact_weight));
+  if (pin_rounds < 0 || pin_rounds > 100)
+    throw OptionError("untangle pin_rounds: must be in 0..100, got " + std::to_string(pin_rounds));
   if (contact_rounds < 0 || contact_rounds > 100)
     throw OptionError("untangle contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
@@ -289,6 +292,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   // result with the fewest inverted cells stays. Each attempt has the whole iteration budget.
   const std::vector<Vec3> settled = system.positions;
   const std::vector<char> settled_fixed = system.fixed;
+  std::unordered_set<int> pinned_here;  // points this stage fixed just inside
   long inverted_left = attempt(true);
   std::string kept = "free_ends";
   auto try_held = [&](const std::vector<Vec3>& from, const std::string& name) {
@@ -310,21 +314,33 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   try_held(system.positions, "free_then_held_ends");
   try_held(settled, "held_ends");
   runs.push_back({{"kept", kept}});
-  outside = outside_free_points(system, query);
-  // Last resort: points still outside are fixed just inside (also fibre points the settle's
-  // containment fixed at a place that was not inside: the fallback of lattice_contact_point).
-  for (int k = 1; k + 1 < lattice.nz; ++k)
-    for (int j = 1; j + 1 < lattice.ny; ++j)
-      for (int i = 1; i + 1 < lattice.nx; ++i) {
-        const int q = lattice.index(i, j, k);
-        if (system.fixed[static_cast<std::size_t>(q)] && query.side(system.positions[static_cast<std::size_t>(q)]) != Side::inside)
-          outside.push_back(q);
-      }
-  const std::vector<double> spacing = lattice_local_spacing(system);
-  for (int q : outside) {
-    system.positions[static_cast<std::size_t>(q)] = contact_target(q, spacing);
-    system.fixed[static_cast<std::size_t>(q)] = 1;
-    ++report.pinned;
+  // Containment inside the loop: the points still outside (and interior points the settle's
+  // containment fixed at a place that is not inside: the fallback of lattice_contact_point) are
+  // fixed just inside, and, since that can fold the cells around them, the untangling runs again
+  // with them fixed (the ends held), until no point is outside, at most `pin_rounds` times.
+  for (int pass = 0;; ++pass) {
+    outside = outside_free_points(system, query);
+    for (int k = 1; k + 1 < lattice.nz; ++k)
+      for (int j = 1; j + 1 < lattice.ny; ++j)
+        for (int i = 1; i + 1 < lattice.nx; ++i) {
+          const int q = lattice.index(i, j, k);
+          if (system.fixed[static_cast<std::size_t>(q)] && !pinned_here.count(q) &&
+              query.side(system.positions[static_cast<std::size_t>(q)]) != Side::inside)
+            outside.push_back(q);
+        }
+    if (outside.empty()) break;
+    const std::vector<double> spacing = lattice_local_spacing(system);
+    for (int q : outside) {
+      system.positions[static_cast<std::size_t>(q)] = contact_target(q, spacing);
+      system.fixed[static_cast<std::size_t>(q)] = 1;
+      pinned_here.insert(q);
+      ++report.pinned;
+    }
+    inverted_left = inverted_count();
+    if (inverted_left == 0 || pass == options.pin_rounds) break;
+    budget = options.iterations;
+    inverted_left = attempt(false);
+    runs.back()["after_pins"] = pass + 1;
   }
   report.inverted_left = inverted_left;
   report.budget_left = budget;

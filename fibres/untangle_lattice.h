@@ -11,8 +11,10 @@
 /// attempt (soft pins at their cast places, at most `end_shift` of the muscle length from them);
 /// while cells stay folded it goes on with the ends held, and last starts again from the settled
 /// lattice with the ends held; the result with the fewest folded cells stays. Containment is part
-/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round); a
-/// point still outside at the end is fixed just inside.
+/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round). A
+/// point still outside at the end is fixed just inside and the cells around it are untangled
+/// again with it fixed (`pin_rounds`), so that no step after the untangling moves a lattice point
+/// and the pins do not fold cells behind the untangling's back.
 #include "fibres/untangle.h"
 #include "geometry/mesh.h"
 #include "morph/surface_query.h"
@@ -44,6 +46,10 @@ struct LatticeUntangleOptions {
   double contact_weight = 30.0;
   /// Containment rounds of an attempt (soft pins, untangle again), >= 0 (default 6).
   int contact_rounds = 6;
+  /// Rounds of "fix the points still outside just inside, untangle again with them fixed" at the
+  /// end, >= 0 (default 3; the pins of the last round stay even if they fold a cell, which the
+  /// report then counts).
+  int pin_rounds = 3;
   /// Depth of a contact point below the surface, in local lattice spacings, (0, 1) (default 0.3).
   double contact_depth = 0.3;
   /// Throws OptionError naming the first bad field.
@@ -89,8 +95,8 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 /// lattice.point_count() are anchors and stay). The fibre ends (layers t = 0 and t = 1, interior
 /// lines) are fixed on entry and on return. `query` is the muscle's surface, `muscle_length` its
 /// length (fibres/fibre_check.h, muscle_length()). Method: see the file comment. On return the
-/// interior lattice points that were outside are fixed just inside. Throws OptionError for bad
-/// options.
+/// interior lattice points that were outside are fixed just inside, and `inverted_left` counts the
+/// folded tetrahedra after those pins. Throws OptionError for bad options.
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
                                        const SurfaceQuery& query, double muscle_length,
                                        const LatticeUntangleOptions& options = {});

@@ -225,3 +225,22 @@ TEST_CASE("lattice cell tetrahedra: the template lattice is unfolded, mirrored t
   std::swap(x[static_cast<std::size_t>(lattice.index(2, 2, 3))], x[static_cast<std::size_t>(lattice.index(3, 2, 3))]);
   CHECK(inverted_tets(x, tets) > 0);
 }
+
+TEST_CASE("untangle in the decomposition: points fixed just inside at the end do not fold cells",
+          "[fibres][untangle][data]") {
+  FASCICLE_REQUIRE_DATA();
+  // VHM left gracilis: the untangling leaves points outside that must be fixed just inside; fixed
+  // after the untangling (as before 2026-11-21 18:40) those pins folded 2 cells. Now the cells
+  // around them are untangled again with the pins fixed.
+  const PolygonSoup soup =
+      read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_Gracilis_smooth.stl");
+  const Decomposition d = decompose(soup, {}, DecomposeOptions{});
+  const nlohmann::json u = d.report.to_json()["untangle"];
+  INFO(u.dump());
+  REQUIRE(u["pinned"].get<long>() > 0);  // the case this test is about
+  CHECK(u["inverted_left"].get<long>() == 0);
+  CHECK(d.report.quality.inverted_cells == 0);
+  CHECK(d.report.quality.inside_fraction == 1.0);
+  CHECK(d.report.quality.attachment.origin_max <= 0.02);
+  CHECK(d.report.quality.attachment.insertion_max <= 0.02);
+}
