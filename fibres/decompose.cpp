@@ -111,13 +111,36 @@ bool ray_hit(const TriangleMesh& mesh, const Vec3& p, const Vec3& d, double reac
   return found;
 }
 
+// Whether the inner points of layer k, seen along `axis`, form an unfolded grid: every quad
+// (diagonals crossed) turns the same way as the whole layer.
+bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice& lattice, int k, const Vec3& axis) {
+  auto at = [&](int i, int j) { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
+  std::vector<double> areas;
+  double total = 0.0;
+  for (int j = 1; j + 2 < lattice.ny; ++j)
+    for (int i = 1; i + 2 < lattice.nx; ++i) {
+      const double a = (at(i + 1, j + 1) - at(i, j)).cross(at(i, j + 1) - at(i + 1, j)).dot(axis);
+      areas.push_back(a);
+      total += a;
+    }
+  for (double a : areas)
+    if (!(a * total > 0.0)) return false;
+  return true;
+}
+
 // The fibre ends of each attachment face, rebuilt under the layer of points next to it: that
 // layer (its inner points) is shrunk towards its centroid by a factor lambda and cast onto the
 // surface along the end axis (from the second layer's centroid through the first's). Seen along
 // the axis the face is then a scaled copy of the layer above it, so the end layer of cells are
 // frustums of that layer's cells and do not fold, whatever the sphere map did near the region
-// centre. lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an
-// attachment-area point (at most 20 times; the ends stay where they were when no lambda fits).
+// centre. Where that layer is itself folded seen along the axis (a narrow, bent tendon end), a
+// copy would carry the fold into the fibre ends, which the untangling must keep near their cast
+// places and so could never open: the face is then cast from the layer's best affine fit over the
+// template's index grid instead (a regular grid of parallelograms, unfolded by construction).
+// lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
+// point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
+// it), the axis from the layer's centroid to the area's centre is tried; the ends stay where they
+// were when neither fits.
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
                           const Attachments& areas, double radius) {
   nlohmann::json out = nlohmann::json::array();
@@ -133,27 +156,65 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       for (int i = 1; i + 1 < lattice.nx; ++i) c1 += at(i, j, k1), c2 += at(i, j, k2), ++count;
     c1 /= count;
     c2 /= count;
-    const Vec3 axis = (c1 - c2).normalized();
-    if (!axis.allFinite()) continue;
+    const Vec3 layer_axis = (c1 - c2).normalized();
+    if (!layer_axis.allFinite()) continue;
+    // Offsets of the cast's starting points from c1 at lambda = 1: the layer's own, or its
+    // affine fit c1 + A (g - g_mean) over the index grid g = (i, j) when the layer is folded.
+    std::vector<Vec3> offsets;
+    for (int j = 1; j + 1 < lattice.ny; ++j)
+      for (int i = 1; i + 1 < lattice.nx; ++i) offsets.push_back(at(i, j, k1) - c1);
+    const bool folded = !layer_unfolded(system, lattice, k1, layer_axis);
+    if (folded) {
+      const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+      Eigen::Matrix<double, 3, 2> cross = Eigen::Matrix<double, 3, 2>::Zero();
+      Eigen::Matrix2d gram = Eigen::Matrix2d::Zero();
+      std::size_t n = 0;
+      for (int j = 1; j + 1 < lattice.ny; ++j)
+        for (int i = 1; i + 1 < lattice.nx; ++i) {
+          const Eigen::Vector2d g = Eigen::Vector2d(i, j) - g_mean;
+          cross += offsets[n++] * g.transpose();
+          gram += g * g.transpose();
+        }
+      const Eigen::Matrix<double, 3, 2> fit = cross * gram.inverse();
+      // A degenerate fit (the layer collapsed onto a line) is no better than the layer.
+      if (fit.col(0).cross(fit.col(1)).norm() > 1e-6 * fit.squaredNorm()) {
+        n = 0;
+        for (int j = 1; j + 1 < lattice.ny; ++j)
+          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit * (Eigen::Vector2d(i, j) - g_mean);
+      }
+    }
+    Vec3 area_centre = Vec3::Zero();
+    for (const SurfacePoint& p : area->points) area_centre += p.position;
+    if (!area->points.empty()) area_centre /= static_cast<double>(area->points.size());
+    std::vector<Vec3> axes{layer_axis};
+    const Vec3 to_area = (area_centre - c1).normalized();
+    if (!area->points.empty() && to_area.allFinite()) axes.push_back(to_area);
     double lambda = 1.0;
     bool placed = false;
     std::vector<Vec3> ends;
-    for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
-      ends.clear();
-      placed = true;
-      for (int j = 1; j + 1 < lattice.ny && placed; ++j)
-        for (int i = 1; i + 1 < lattice.nx && placed; ++i) {
-          const Vec3 start = c1 + lambda * (at(i, j, k1) - c1);
+    std::size_t used_axis = 0;
+    for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
+      lambda = 1.0;
+      for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
+        ends.clear();
+        placed = true;
+        for (const Vec3& offset : offsets) {
+          const Vec3 start = c1 + lambda * offset;
           Vec3 hit;
-          if (!ray_hit(muscle, start, axis, reach, hit)) {
+          if (!ray_hit(muscle, start, axes[a], reach, hit)) {
             placed = false;
             break;
           }
           double nearest = 1e300;
           for (const SurfacePoint& p : area->points) nearest = std::min(nearest, (p.position - hit).squaredNorm());
-          if (nearest > radius * radius) placed = false;
+          if (nearest > radius * radius) {
+            placed = false;
+            break;
+          }
           ends.push_back(hit);
         }
+      }
+      used_axis = a;
     }
     if (placed) {
       lambda /= 0.8;
@@ -161,7 +222,11 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       for (int j = 1; j + 1 < lattice.ny; ++j)
         for (int i = 1; i + 1 < lattice.nx; ++i) at(i, j, k_end) = ends[n++];
     }
-    out.push_back({{"face", k_end == 0 ? "origin" : "insertion"}, {"cast", placed}, {"shrink", placed ? lambda : 0.0}});
+    out.push_back({{"face", k_end == 0 ? "origin" : "insertion"},
+                   {"cast", placed},
+                   {"shrink", placed ? lambda : 0.0},
+                   {"from", folded ? "affine_fit" : "layer"},
+                   {"axis", used_axis == 0 ? "layer" : "area"}});
   }
   return out;
 }

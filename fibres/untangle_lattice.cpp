@@ -207,8 +207,10 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
             anchors.push_back({q, system.positions[static_cast<std::size_t>(q)], options.end_anchor_weight / (h * h)});
           }
     }
+    long best_round = inverted_count();  // fewest folded tetrahedra after a round of this attempt
     for (int round = 0;; ++round) {
       const std::size_t runs_before = runs.size();
+      long previous_free = -1;  // free points of the previous run of this round
       // Local first: only the points within `radius` lattice steps (Chebyshev) of an inverted
       // cell or an anchored point move, the rest of the settled lattice stays as it is; the
       // region grows while cells stay inverted, up to the whole lattice.
@@ -240,6 +242,12 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           for (std::size_t q = 0; q < region.size(); ++q)
             if (!region[q]) local_fixed[q] = 1;
         }
+        // A wider region that frees no more points than the last run is the same problem again:
+        // skip it (its last run already stopped where it could not improve).
+        long free = 0;
+        for (char f : local_fixed) free += f ? 0 : 1;
+        if (free == previous_free) break;
+        previous_free = free;
         const UntangleReport untangled = untangle(system.positions, local_fixed, tets, options.solver, anchors);
         nlohmann::json run = untangled.to_json();
         run["radius"] = whole ? -1 : radius;
@@ -255,6 +263,12 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         runs.back()["free_ends"] = free_ends;
       }
       if (outside.empty() || round == options.contact_rounds || budget <= 0) break;
+      // A round that left cells folded and did not fold fewer than the best round before is a
+      // stall: the containment pins of further rounds only pull against the same fold (the
+      // attempts after this one start elsewhere).
+      const long now = inverted_count();
+      if (now > 0 && now >= best_round) break;
+      best_round = std::min(best_round, now);
       // Containment: an outside point gets a soft pin just inside, 4x stronger each round.
       const std::vector<double> spacing = lattice_local_spacing(system);
       for (int q : outside) {
@@ -287,32 +301,34 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           }
     return inverted_count();
   };
-  // The ends free first; then, while cells stay inverted, on from there with the ends held,
-  // and last from the settled lattice with the ends held (some lattices unfold only so); the
-  // result with the fewest inverted cells stays. Each attempt has the whole iteration budget.
+  // The ends held first, from the settled lattice (cheap where the folds are local: most
+  // muscles); while cells stay inverted, from the settled lattice with the ends free, then on
+  // from there with the ends held. The result with the fewest inverted cells stays. Each attempt
+  // has the whole iteration budget and stops early when a round does not improve.
   const std::vector<Vec3> settled = system.positions;
   const std::vector<char> settled_fixed = system.fixed;
   std::unordered_set<int> pinned_here;  // points this stage fixed just inside
-  long inverted_left = attempt(true);
-  std::string kept = "free_ends";
-  auto try_held = [&](const std::vector<Vec3>& from, const std::string& name) {
-    if (inverted_left == 0) return;
-    const std::vector<Vec3> best = system.positions;
-    const long best_inverted = inverted_left;
+  long inverted_left = attempt(false);
+  std::string kept = "held_ends";
+  std::vector<Vec3> best = system.positions;
+  auto run_from = [&](const std::vector<Vec3>& from, bool free_ends, const std::string& name) {
     system.positions = from;
     system.fixed = settled_fixed;
     budget = options.iterations;
-    inverted_left = attempt(false);
-    if (inverted_left >= best_inverted) {
-      system.positions = best;
-      system.fixed = settled_fixed;
-      inverted_left = best_inverted;
-    } else {
+    const long n = attempt(free_ends);
+    if (n < inverted_left) {
+      inverted_left = n;
+      best = system.positions;
       kept = name;
     }
   };
-  try_held(system.positions, "free_then_held_ends");
-  try_held(settled, "held_ends");
+  if (inverted_left > 0) {
+    run_from(settled, true, "free_ends");
+    const std::vector<Vec3> free_result = system.positions;
+    if (inverted_left > 0) run_from(free_result, false, "free_then_held_ends");
+  }
+  system.positions = best;
+  system.fixed = settled_fixed;
   runs.push_back({{"kept", kept}});
   // Containment inside the loop: the points still outside (and interior points the settle's
   // containment fixed at a place that is not inside: the fallback of lattice_contact_point) are
@@ -338,9 +354,16 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     }
     inverted_left = inverted_count();
     if (inverted_left == 0 || pass == options.pin_rounds) break;
+    // Every point is inside now; an untangling that does not fold fewer cells is undone.
+    const std::vector<Vec3> pinned_positions = system.positions;
     budget = options.iterations;
-    inverted_left = attempt(false);
+    const long again = attempt(false);
     runs.back()["after_pins"] = pass + 1;
+    if (again >= inverted_left) {
+      system.positions = pinned_positions;
+      break;
+    }
+    inverted_left = again;
   }
   report.inverted_left = inverted_left;
   report.budget_left = budget;

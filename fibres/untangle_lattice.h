@@ -7,14 +7,17 @@
 /// fibres/fibre_grid.h) and handed to the barrier untangling of fibres/untangle.h (Garanzha et al.
 /// 2021), each tetrahedron measured against its own settled shape where that shape is good, else
 /// against its layer's mean cell. The work is local first (the points within 2, then 6 lattice
-/// steps of a folded cell move), then the whole lattice. The fibre ends may move in a first
-/// attempt (soft pins at their cast places, at most `end_shift` of the muscle length from them);
-/// while cells stay folded it goes on with the ends held, and last starts again from the settled
-/// lattice with the ends held; the result with the fewest folded cells stays. Containment is part
-/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round). A
-/// point still outside at the end is fixed just inside and the cells around it are untangled
-/// again with it fixed (`pin_rounds`), so that no step after the untangling moves a lattice point
-/// and the pins do not fold cells behind the untangling's back.
+/// steps of a folded cell move), then the whole lattice; a wider region that frees no more points
+/// is skipped. The first attempt holds the fibre ends and starts from the settled lattice (enough
+/// where the folds are local, and cheap); while cells stay folded, a second starts again from the
+/// settled lattice with the ends free (soft pins at their cast places, at most `end_shift` of the
+/// muscle length from them: a cell against an end face can need that), and a third goes on from
+/// there with the ends held; the result with the fewest folded cells stays. Containment is part
+/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round); an
+/// attempt stops when a round does not fold fewer cells than the rounds before it. At the end a
+/// point still outside is fixed just inside and the cells around it are untangled again with it
+/// fixed (`pin_rounds`; undone when that does not fold fewer cells), so that no step after the
+/// untangling moves a lattice point and the pins do not fold cells behind the untangling's back.
 #include "fibres/untangle.h"
 #include "geometry/mesh.h"
 #include "morph/surface_query.h"
@@ -63,7 +66,7 @@ struct LatticeUntangleReport {
   long inverted_left = 0;     ///< and at the end
   int budget_left = 0;        ///< iterations left to the last attempt
   long pinned = 0;            ///< points fixed just inside at the end of an attempt
-  std::string kept;           ///< the attempt kept: free_ends, free_then_held_ends or held_ends
+  std::string kept;           ///< the attempt kept: held_ends, free_ends or free_then_held_ends
   nlohmann::json to_json() const;
 };
 

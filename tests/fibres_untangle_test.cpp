@@ -229,11 +229,10 @@ TEST_CASE("lattice cell tetrahedra: the template lattice is unfolded, mirrored t
 TEST_CASE("untangle in the decomposition: points fixed just inside at the end do not fold cells",
           "[fibres][untangle][data]") {
   FASCICLE_REQUIRE_DATA();
-  // VHM left gracilis: the untangling leaves points outside that must be fixed just inside; fixed
-  // after the untangling (as before 2026-11-21 18:40) those pins folded 2 cells. Now the cells
-  // around them are untangled again with the pins fixed.
-  const PolygonSoup soup =
-      read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_Gracilis_smooth.stl");
+  // LHDL right gluteus medius: the untangling leaves points outside that must be fixed just
+  // inside; fixed after the untangling, those pins fold cells (VHM gracilis: 2 cells before
+  // 2026-11-21). Now the cells around them are untangled again with the pins fixed.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
   const Decomposition d = decompose(soup, {}, DecomposeOptions{});
   const nlohmann::json u = d.report.to_json()["untangle"];
   INFO(u.dump());
