@@ -19,8 +19,10 @@
 ///     spacing further in (4x stiffer each round, `soft_contact_rounds` rounds), then is fixed at
 ///     its anchor, the settle repeated each time (at most `contact_rounds` rounds) - a contact
 ///     constraint of the solve, reported, never a silent clip of the output; after the first
-///     settle the fibre ends are cast onto the surface under the layer next to them and the
-///     interior settled again (`cast_rounds` times), with the same containment;
+///     settle the fibre ends are cast onto the surface under the layer next to them (under its
+///     best affine fit over the index grid where that layer is folded seen along the end axis,
+///     so that the ends are never a copy of a fold) and the interior settled again
+///     (`cast_rounds` times), with the same containment;
 ///  7. untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded by
 ///     a barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally
 ///     first, with the fibre ends free (soft pins) and then held, with containment; see

@@ -204,7 +204,7 @@ TEST_CASE("kuhn split: six positive tetrahedra around the diagonal that fill the
   CHECK(total == Approx(1.0));  // positive and summing to the cube: they tile it
 }
 
-TEST_CASE("lattice cell tetrahedra: the template lattice is unfolded, mirrored too; a swap folds it",
+TEST_CASE("lattice cell tetrahedra: the template lattice and its mirror image are unfolded, a swap folds it",
           "[fibres][untangle]") {
   springs::LatticeOptions o;
   o.nr = 5;
