@@ -138,7 +138,7 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--untangle", o.untangle_cells,
                   "Unfold the cells the settle leaves inverted (barrier untangling, fibres/untangle.h)")
       ->capture_default_str();
-  cmd->add_option("--end-anchor-weight", o.end_anchor_weight,
+  cmd->add_option("--end-anchor-weight", o.untangle.end_anchor_weight,
                   "Untangling: weight of the soft pins holding the fibre ends at their cast places")
       ->capture_default_str();
   cmd->add_flag("--keep-failed", args->keep_failed,

@@ -73,106 +73,11 @@ void stretch_rest_lengths(springs::SpringSystem& system, const std::vector<Vec3>
   report["shortest_rest"] = shortest;
 }
 
-// Mean length of the springs at each point (its local lattice spacing).
-std::vector<double> local_spacing(const springs::SpringSystem& system) {
-  std::vector<double> sum(system.positions.size(), 0.0), count(system.positions.size(), 0.0);
-  for (const springs::Spring& s : system.springs) {
-    const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
-    sum[static_cast<std::size_t>(s.a)] += l;
-    sum[static_cast<std::size_t>(s.b)] += l;
-    count[static_cast<std::size_t>(s.a)] += 1.0;
-    count[static_cast<std::size_t>(s.b)] += 1.0;
-  }
-  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] = count[i] > 0.0 ? sum[i] / count[i] : 0.0;
-  return sum;
-}
-
 std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
   std::vector<int> out;
   for (std::size_t q = 0; q < system.positions.size(); ++q)
     if (!system.fixed[q] && query.side(system.positions[q]) != Side::inside) out.push_back(static_cast<int>(q));
   return out;
-}
-
-// The tetrahedra of all lattice cells, split as the quality check splits them (fibres/fibre_check.h:
-// six Kuhn tetrahedra a cell around its diagonal (i,j,k)-(i+1,j+1,k+1)), oriented like the total
-// volume of the output fibres' cells at `x`. Counted: the cells between output fibres (interior
-// lattice lines), which the check counts; the cells against the surface ring are in the energy
-// only (keeping them positive keeps the interior inside the ring). Reference shape of a cell in
-// layer k: a box with the mean edge lengths along r, s and t of that layer's interior cells.
-std::vector<UntangleTet> lattice_cell_tets(const springs::Lattice& lattice, const std::vector<Vec3>& x) {
-  static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
-  static const bool odd[6] = {false, false, false, true, true, true};
-  auto at = [&](int i, int j, int k) { return lattice.index(i, j, k); };
-  auto len = [&](int a, int b) { return (x[static_cast<std::size_t>(a)] - x[static_cast<std::size_t>(b)]).norm(); };
-  std::vector<UntangleTet> tets;
-  double total = 0.0;
-  for (int k = 0; k + 1 < lattice.nz; ++k) {
-    double hr = 0.0, hs = 0.0, ht = 0.0;
-    int nr = 0, ns = 0, nt = 0;
-    for (int c = 0; c < 2; ++c)
-      for (int j = 1; j + 1 < lattice.ny; ++j)
-        for (int i = 1; i + 1 < lattice.nx; ++i) {
-          if (i + 2 < lattice.nx) hr += len(at(i, j, k + c), at(i + 1, j, k + c)), ++nr;
-          if (j + 2 < lattice.ny) hs += len(at(i, j, k + c), at(i, j + 1, k + c)), ++ns;
-          if (c == 0) ht += len(at(i, j, k), at(i, j, k + 1)), ++nt;
-        }
-    const Vec3 h(nr ? hr / nr : 1.0, ns ? hs / ns : 1.0, nt ? ht / nt : 1.0);
-    if (!(h.minCoeff() > 0.0)) continue;
-    for (int j = 0; j + 1 < lattice.ny; ++j)
-      for (int i = 0; i + 1 < lattice.nx; ++i) {
-        const bool counted = i >= 1 && j >= 1 && i + 2 < lattice.nx && j + 2 < lattice.ny;
-        int corner_index[8];
-        Vec3 corner_box[8];
-        for (int q = 0; q < 8; ++q) {
-          const int a = q & 1, b = (q >> 1) & 1, c = (q >> 2) & 1;
-          corner_index[q] = at(i + a, j + b, k + c);
-          corner_box[q] = Vec3(a * h.x(), b * h.y(), c * h.z());
-        }
-        for (int t = 0; t < 6; ++t) {
-          UntangleTet tet;
-          tet.counted = counted;
-          tet.eps_floor = counted ? 0.0 : 0.5;
-          int corner = 0;
-          std::array<int, 4> local{0, 0, 0, 0};
-          for (int step = 0; step < 3; ++step) {
-            corner |= 1 << perms[t][step];
-            local[static_cast<std::size_t>(step) + 1] = corner;
-          }
-          if (odd[t]) std::swap(local[2], local[3]);
-          Eigen::Matrix3d s, d;
-          for (int col = 0; col < 3; ++col) {
-            s.col(col) = corner_box[local[static_cast<std::size_t>(col) + 1]] - corner_box[local[0]];
-            d.col(col) = x[static_cast<std::size_t>(corner_index[local[static_cast<std::size_t>(col) + 1]])] -
-                         x[static_cast<std::size_t>(corner_index[local[0]])];
-          }
-          for (int v = 0; v < 4; ++v) tet.v[static_cast<std::size_t>(v)] = corner_index[local[static_cast<std::size_t>(v)]];
-          tet.reference_inverse = s.inverse();
-          if (counted) total += d.determinant();
-          tets.push_back(tet);
-        }
-      }
-  }
-  if (total < 0.0) {
-    // The lattice lies mirrored in the muscle: orient every tetrahedron (and its reference) the
-    // other way.
-    const Eigen::Matrix3d mirror = Eigen::Vector3d(-1.0, 1.0, 1.0).asDiagonal();
-    for (UntangleTet& tet : tets) tet.reference_inverse = tet.reference_inverse * mirror;
-  }
-  // A tetrahedron in good shape keeps its own settled shape as the reference, so that the
-  // untangling energy is least where the settle left the lattice and changes it only around
-  // the folds: good = det J > 0.2 and shape distortion tr(J^T J) / (3 det^(2/3)) < 2 against the
-  // layer's box (the same orientation, so an inverted tetrahedron never becomes a reference).
-  for (UntangleTet& tet : tets) {
-    Eigen::Matrix3d d;
-    for (int col = 0; col < 3; ++col)
-      d.col(col) = x[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])] - x[static_cast<std::size_t>(tet.v[0])];
-    const Eigen::Matrix3d j = d * tet.reference_inverse;
-    const double det = j.determinant();
-    if (!(det > 0.2)) continue;
-    if (j.squaredNorm() / (3.0 * std::cbrt(det * det)) < 2.0) tet.reference_inverse = d.inverse();
-  }
-  return tets;
 }
 
 // First hit of the ray p + t d (t > 0) with the muscle surface (Moeller-Trumbore on every
@@ -206,13 +111,36 @@ bool ray_hit(const TriangleMesh& mesh, const Vec3& p, const Vec3& d, double reac
   return found;
 }
 
+// Whether the inner points of layer k, seen along `axis`, form an unfolded grid: every quad
+// (diagonals crossed) turns the same way as the whole layer.
+bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice& lattice, int k, const Vec3& axis) {
+  auto at = [&](int i, int j) { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
+  std::vector<double> areas;
+  double total = 0.0;
+  for (int j = 1; j + 2 < lattice.ny; ++j)
+    for (int i = 1; i + 2 < lattice.nx; ++i) {
+      const double a = (at(i + 1, j + 1) - at(i, j)).cross(at(i, j + 1) - at(i + 1, j)).dot(axis);
+      areas.push_back(a);
+      total += a;
+    }
+  for (double a : areas)
+    if (!(a * total > 0.0)) return false;
+  return true;
+}
+
 // The fibre ends of each attachment face, rebuilt under the layer of points next to it: that
 // layer (its inner points) is shrunk towards its centroid by a factor lambda and cast onto the
 // surface along the end axis (from the second layer's centroid through the first's). Seen along
 // the axis the face is then a scaled copy of the layer above it, so the end layer of cells are
 // frustums of that layer's cells and do not fold, whatever the sphere map did near the region
-// centre. lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an
-// attachment-area point (at most 20 times; the ends stay where they were when no lambda fits).
+// centre. Where that layer is itself folded seen along the axis (a narrow, bent tendon end), a
+// copy would carry the fold into the fibre ends, which the untangling must keep near their cast
+// places and so could never open: the face is then cast from the layer's best affine fit over the
+// template's index grid instead (a regular grid of parallelograms, unfolded by construction).
+// lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
+// point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
+// it), the axis from the layer's centroid to the area's centre is tried; the ends stay where they
+// were when neither fits.
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
                           const Attachments& areas, double radius) {
   nlohmann::json out = nlohmann::json::array();
@@ -228,27 +156,65 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       for (int i = 1; i + 1 < lattice.nx; ++i) c1 += at(i, j, k1), c2 += at(i, j, k2), ++count;
     c1 /= count;
     c2 /= count;
-    const Vec3 axis = (c1 - c2).normalized();
-    if (!axis.allFinite()) continue;
+    const Vec3 layer_axis = (c1 - c2).normalized();
+    if (!layer_axis.allFinite()) continue;
+    // Offsets of the cast's starting points from c1 at lambda = 1: the layer's own, or its
+    // affine fit c1 + A (g - g_mean) over the index grid g = (i, j) when the layer is folded.
+    std::vector<Vec3> offsets;
+    for (int j = 1; j + 1 < lattice.ny; ++j)
+      for (int i = 1; i + 1 < lattice.nx; ++i) offsets.push_back(at(i, j, k1) - c1);
+    const bool folded = !layer_unfolded(system, lattice, k1, layer_axis);
+    if (folded) {
+      const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+      Eigen::Matrix<double, 3, 2> cross = Eigen::Matrix<double, 3, 2>::Zero();
+      Eigen::Matrix2d gram = Eigen::Matrix2d::Zero();
+      std::size_t n = 0;
+      for (int j = 1; j + 1 < lattice.ny; ++j)
+        for (int i = 1; i + 1 < lattice.nx; ++i) {
+          const Eigen::Vector2d g = Eigen::Vector2d(i, j) - g_mean;
+          cross += offsets[n++] * g.transpose();
+          gram += g * g.transpose();
+        }
+      const Eigen::Matrix<double, 3, 2> fit = cross * gram.inverse();
+      // A degenerate fit (the layer collapsed onto a line) is no better than the layer.
+      if (fit.col(0).cross(fit.col(1)).norm() > 1e-6 * fit.squaredNorm()) {
+        n = 0;
+        for (int j = 1; j + 1 < lattice.ny; ++j)
+          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit * (Eigen::Vector2d(i, j) - g_mean);
+      }
+    }
+    Vec3 area_centre = Vec3::Zero();
+    for (const SurfacePoint& p : area->points) area_centre += p.position;
+    if (!area->points.empty()) area_centre /= static_cast<double>(area->points.size());
+    std::vector<Vec3> axes{layer_axis};
+    const Vec3 to_area = (area_centre - c1).normalized();
+    if (!area->points.empty() && to_area.allFinite()) axes.push_back(to_area);
     double lambda = 1.0;
     bool placed = false;
     std::vector<Vec3> ends;
-    for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
-      ends.clear();
-      placed = true;
-      for (int j = 1; j + 1 < lattice.ny && placed; ++j)
-        for (int i = 1; i + 1 < lattice.nx && placed; ++i) {
-          const Vec3 start = c1 + lambda * (at(i, j, k1) - c1);
+    std::size_t used_axis = 0;
+    for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
+      lambda = 1.0;
+      for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
+        ends.clear();
+        placed = true;
+        for (const Vec3& offset : offsets) {
+          const Vec3 start = c1 + lambda * offset;
           Vec3 hit;
-          if (!ray_hit(muscle, start, axis, reach, hit)) {
+          if (!ray_hit(muscle, start, axes[a], reach, hit)) {
             placed = false;
             break;
           }
           double nearest = 1e300;
           for (const SurfacePoint& p : area->points) nearest = std::min(nearest, (p.position - hit).squaredNorm());
-          if (nearest > radius * radius) placed = false;
+          if (nearest > radius * radius) {
+            placed = false;
+            break;
+          }
           ends.push_back(hit);
         }
+      }
+      used_axis = a;
     }
     if (placed) {
       lambda /= 0.8;
@@ -256,7 +222,11 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       for (int j = 1; j + 1 < lattice.ny; ++j)
         for (int i = 1; i + 1 < lattice.nx; ++i) at(i, j, k_end) = ends[n++];
     }
-    out.push_back({{"face", k_end == 0 ? "origin" : "insertion"}, {"cast", placed}, {"shrink", placed ? lambda : 0.0}});
+    out.push_back({{"face", k_end == 0 ? "origin" : "insertion"},
+                   {"cast", placed},
+                   {"shrink", placed ? lambda : 0.0},
+                   {"from", folded ? "affine_fit" : "layer"},
+                   {"axis", used_axis == 0 ? "layer" : "area"}});
   }
   return out;
 }
@@ -294,12 +264,6 @@ void DecomposeOptions::validate() const {
   placement.validate();
   settle.validate();
   untangle.validate();
-  if (!(end_shift >= 0.0 && end_shift < 1.0))
-    throw OptionError("end_shift: must be in [0, 1), got " + std::to_string(end_shift));
-  if (!(end_anchor_weight > 0.0 && end_anchor_weight < 1e12))
-    throw OptionError("end_anchor_weight: must be in (0, 1e12), got " + std::to_string(end_anchor_weight));
-  if (untangle_iterations < 0 || untangle_iterations > 10'000'000)
-    throw OptionError("untangle_iterations: must be in 0..10000000, got " + std::to_string(untangle_iterations));
   // Decompose's own cap on the fibre count (below the lattice's), then the lattice's checks of
   // fibres, resolution and their product.
   if (fibres > 1'000'000) throw OptionError("fibres: at most 1000000, got " + std::to_string(fibres));
@@ -464,42 +428,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   // A point just inside the surface for the outside point q: the closest surface point moved
   // `contact_depth` local spacings inwards (halved until it is inside).
   auto contact_target = [&](int q, const std::vector<double>& spacing) -> Vec3 {
-    const Vec3 p = system.positions[static_cast<std::size_t>(q)];
-    const SurfacePoint c = query.closest_point(p);
-    Vec3 inward = c.position - p;
-    if (inward.norm() == 0.0) {
-      // On the surface: go towards the muscle's centre of mass of the lattice neighbours.
-      inward = Vec3::Zero();
-      for (const springs::Spring& s : system.springs) {
-        if (s.a == q) inward += system.positions[static_cast<std::size_t>(s.b)] - p;
-        if (s.b == q) inward += system.positions[static_cast<std::size_t>(s.a)] - p;
-      }
-    }
-    inward.normalize();
-    double depth = options.contact_depth * spacing[static_cast<std::size_t>(q)];
-    Vec3 moved = c.position + depth * inward;
-    for (int attempt = 0; attempt < 6 && query.side(moved) != Side::inside; ++attempt) {
-      depth *= 0.5;
-      moved = c.position + depth * inward;
-    }
-    if (query.side(moved) == Side::inside) return moved;
-    // Thin places, where the inward normal leaves through the other side: on the way from the
-    // closest surface point to a lattice neighbour that is inside (nearest first).
-    std::vector<std::pair<double, Vec3>> inside_neighbours;
-    for (const springs::Spring& s : system.springs) {
-      const int other = s.a == q ? s.b : s.b == q ? s.a : -1;
-      if (other < 0 || other >= lattice.point_count()) continue;
-      const Vec3& o = system.positions[static_cast<std::size_t>(other)];
-      if (query.side(o) == Side::inside) inside_neighbours.emplace_back((o - p).norm(), o);
-    }
-    std::sort(inside_neighbours.begin(), inside_neighbours.end(),
-              [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [distance, o] : inside_neighbours)
-      for (double t = 0.5; t > 1e-2; t *= 0.5) {
-        const Vec3 candidate = o + t * (c.position - o);
-        if (query.side(candidate) == Side::inside) return candidate;
-      }
-    return moved;
+    return lattice_contact_point(system, lattice.point_count(), query, q, options.contact_depth, spacing);
   };
   auto settle_with_contact = [&](const springs::SettleOptions& settle_options) {
     int soft = 0, local_rounds = 0;
@@ -525,7 +454,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       if (outside.empty() || local_rounds == options.contact_rounds) break;
       ++local_rounds;
       ++rounds;
-      const std::vector<double> spacing = local_spacing(system);
+      const std::vector<double> spacing = lattice_local_spacing(system);
       for (int q : outside) {
         const Vec3 moved = contact_target(q, spacing);
         if (soft < options.soft_contact_rounds) {
@@ -563,164 +492,13 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius));
     settle_with_contact(round + 1 < options.cast_rounds ? rough : options.settle);
   }
-  // Untangling: the cells the settle left inverted are unfolded with the fixed points held; a
-  // point that this moves outside is pinned just inside (as in the containment) and the
-  // untangling repeated.
+  // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
+  // containment.
   if (options.untangle_cells) {
-    const std::vector<UntangleTet> tets = lattice_cell_tets(lattice, system.positions);
-    nlohmann::json runs = nlohmann::json::array();
-    auto inverted_count = [&] {
-      long n = 0;
-      const std::vector<double> dets = tet_jacobian_dets(system.positions, tets);
-      for (std::size_t t = 0; t < tets.size(); ++t) n += tets[t].counted && !(dets[t] > 0.0) ? 1 : 0;
-      return n;
-    };
-    // One attempt: rounds of (local, then wider) untangling and soft containment. With
-    // `free_ends` the fibre ends may give way too (into the muscle, or along the surface), held
-    // by soft pins at the places the cast gave them: a cell against an end face can need that.
-    int budget = options.untangle_iterations;
-    const double length = muscle_length(muscle);
-    auto attempt = [&](bool free_ends) {
-      std::vector<UntangleAnchor> anchors;
-      std::unordered_map<int, std::size_t> anchor_of;  // lattice point -> its anchor
-      std::unordered_map<int, Vec3> cast_place;         // fibre end -> where the cast put it
-      if (free_ends) {
-        const std::vector<double> spacing = local_spacing(system);
-        for (int k : {0, lattice.nz - 1})
-          for (int j = 1; j + 1 < lattice.ny; ++j)
-            for (int i = 1; i + 1 < lattice.nx; ++i) {
-              const int q = lattice.index(i, j, k);
-              const double h = spacing[static_cast<std::size_t>(q)];
-              system.fixed[static_cast<std::size_t>(q)] = 0;
-              anchor_of[q] = anchors.size();
-              cast_place[q] = system.positions[static_cast<std::size_t>(q)];
-              anchors.push_back({q, system.positions[static_cast<std::size_t>(q)], options.end_anchor_weight / (h * h)});
-            }
-      }
-      for (int round = 0;; ++round) {
-        const std::size_t runs_before = runs.size();
-        // Local first: only the points within `radius` lattice steps (Chebyshev) of an inverted
-        // cell or an anchored point move, the rest of the settled lattice stays as it is; the
-        // region grows while cells stay inverted, up to the whole lattice.
-        for (int radius : {2, 6, 1 << 20}) {
-          if (budget <= 0) break;
-          const std::vector<double> dets = tet_jacobian_dets(system.positions, tets);
-          std::vector<char> near(static_cast<std::size_t>(lattice.point_count()), 0);
-          bool inverted = false;
-          for (std::size_t t = 0; t < tets.size(); ++t) {
-            if (!tets[t].counted || dets[t] > options.untangle.min_det) continue;
-            inverted = true;
-            for (int v : tets[t].v) near[static_cast<std::size_t>(v)] = 1;
-          }
-          if (!inverted && (radius > 2 || anchors.empty())) break;
-          for (const UntangleAnchor& a : anchors) near[static_cast<std::size_t>(a.point)] = 1;
-          const bool whole = radius >= std::max({lattice.nx, lattice.ny, lattice.nz});
-          std::vector<char> local_fixed = system.fixed;
-          if (!whole) {
-            std::vector<char> region(near.size(), 0);
-            for (int k = 0; k < lattice.nz; ++k)
-              for (int j = 0; j < lattice.ny; ++j)
-                for (int i = 0; i < lattice.nx; ++i) {
-                  if (!near[static_cast<std::size_t>(lattice.index(i, j, k))]) continue;
-                  for (int c = std::max(0, k - radius); c <= std::min(lattice.nz - 1, k + radius); ++c)
-                    for (int b = std::max(0, j - radius); b <= std::min(lattice.ny - 1, j + radius); ++b)
-                      for (int a = std::max(0, i - radius); a <= std::min(lattice.nx - 1, i + radius); ++a)
-                        region[static_cast<std::size_t>(lattice.index(a, b, c))] = 1;
-                }
-            for (std::size_t q = 0; q < region.size(); ++q)
-              if (!region[q]) local_fixed[q] = 1;
-          }
-          const UntangleReport untangled = untangle(system.positions, local_fixed, tets, options.untangle, anchors);
-          nlohmann::json run = untangled.to_json();
-          run["radius"] = whole ? -1 : radius;
-          run["round"] = round;
-          run["anchors"] = anchors.size();
-          runs.push_back(run);
-          budget -= untangled.iterations;
-          if (untangled.untangled()) break;
-        }
-        outside = outside_free_points(system, query);
-        if (runs.size() > runs_before) {
-          runs.back()["outside"] = outside.size();
-          runs.back()["free_ends"] = free_ends;
-        }
-        if (outside.empty() || round == options.contact_rounds || budget <= 0) break;
-        // Containment: an outside point gets a soft pin just inside, 4x stronger each round.
-        const std::vector<double> spacing = local_spacing(system);
-        for (int q : outside) {
-          const Vec3 target = contact_target(q, spacing);
-          const auto it = anchor_of.find(q);
-          if (it == anchor_of.end()) {
-            const double h = spacing[static_cast<std::size_t>(q)];
-            anchor_of[q] = anchors.size();
-            anchors.push_back({q, target, 30.0 / (h * h)});
-          } else {
-            anchors[it->second].target = target;
-            anchors[it->second].weight *= 4.0;
-          }
-        }
-      }
-      // The ends are fixed again, at most `end_shift` (a share of the muscle length) from their
-      // cast places so that they stay on their attachment areas; one the untangling left outside
-      // goes to the closest surface point.
-      if (free_ends)
-        for (int k : {0, lattice.nz - 1})
-          for (int j = 1; j + 1 < lattice.ny; ++j)
-            for (int i = 1; i + 1 < lattice.nx; ++i) {
-              const int q = lattice.index(i, j, k);
-              Vec3& x = system.positions[static_cast<std::size_t>(q)];
-              const Vec3 cast = cast_place.at(q);
-              const double limit = options.end_shift * length;
-              if ((x - cast).norm() > limit) x = cast + limit * (x - cast).normalized();
-              if (query.side(x) == Side::outside) x = query.closest_point(x).position;
-              system.fixed[static_cast<std::size_t>(q)] = 1;
-            }
-      return inverted_count();
-    };
-    // The ends free first; then, while cells stay inverted, on from there with the ends held,
-    // and last from the settled lattice with the ends held (some lattices unfold only so); the
-    // result with the fewest inverted cells stays. Each attempt has the whole iteration budget.
-    const std::vector<Vec3> settled = system.positions;
-    const std::vector<char> settled_fixed = system.fixed;
-    long inverted_left = attempt(true);
-    std::string kept = "free_ends";
-    auto try_held = [&](const std::vector<Vec3>& from, const std::string& name) {
-      if (inverted_left == 0) return;
-      const std::vector<Vec3> best = system.positions;
-      const long best_inverted = inverted_left;
-      system.positions = from;
-      system.fixed = settled_fixed;
-      budget = options.untangle_iterations;
-      inverted_left = attempt(false);
-      if (inverted_left >= best_inverted) {
-        system.positions = best;
-        system.fixed = settled_fixed;
-        inverted_left = best_inverted;
-      } else {
-        kept = name;
-      }
-    };
-    try_held(system.positions, "free_then_held_ends");
-    try_held(settled, "held_ends");
-    runs.push_back({{"kept", kept}});
+    const LatticeUntangleReport untangled = untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle);
+    pinned += static_cast<int>(untangled.pinned);
     outside = outside_free_points(system, query);
-    // Last resort: points still outside are fixed just inside (also fibre points the settle's
-    // containment fixed at a place that was not inside: the fallback of contact_target).
-    for (int k = 1; k + 1 < lattice.nz; ++k)
-      for (int j = 1; j + 1 < lattice.ny; ++j)
-        for (int i = 1; i + 1 < lattice.nx; ++i) {
-          const int q = lattice.index(i, j, k);
-          if (system.fixed[static_cast<std::size_t>(q)] && query.side(system.positions[static_cast<std::size_t>(q)]) != Side::inside)
-            outside.push_back(q);
-        }
-    const std::vector<double> spacing = local_spacing(system);
-    for (int q : outside) {
-      system.positions[static_cast<std::size_t>(q)] = contact_target(q, spacing);
-      system.fixed[static_cast<std::size_t>(q)] = 1;
-      ++pinned;
-    }
-    outside = outside_free_points(system, query);
-    report.untangle = {{"runs", runs}, {"inverted_left", inverted_left}, {"budget_left", budget}};
+    report.untangle = untangled.to_json();
   }
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;

@@ -19,11 +19,13 @@
 ///     spacing further in (4x stiffer each round, `soft_contact_rounds` rounds), then is fixed at
 ///     its anchor, the settle repeated each time (at most `contact_rounds` rounds) - a contact
 ///     constraint of the solve, reported, never a silent clip of the output; after the first
-///     settle the fibre ends are cast onto the surface under the layer next to them and the
-///     interior settled again (`cast_rounds` times), with the same containment;
-///  7. untangling (fibres/untangle.h): the cells the settle left inverted are unfolded by a
-///     barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally first,
-///     with the fibre ends held and then free (soft pins), with soft containment; see
+///     settle the fibre ends are cast onto the surface under the layer next to them (under its
+///     best affine fit over the index grid where that layer is folded seen along the end axis,
+///     so that the ends are never a copy of a fold) and the interior settled again
+///     (`cast_rounds` times), with the same containment;
+///  7. untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded by
+///     a barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally
+///     first, with the fibre ends free (soft pins) and then held, with containment; see
 ///     docs/decompose.md step 8;
 ///  8. optional smoothing along the fibres (free points only);
 ///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
@@ -31,7 +33,7 @@
 ///     attachment distances.
 #include "fibres/fibre_check.h"
 #include "fibres/template_placement.h"
-#include "fibres/untangle.h"
+#include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
 #include "morph/sphere_map.h"
@@ -83,21 +85,11 @@ struct DecomposeOptions {
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
                                 ///< spacings, (0, 1) (default 0.3)
-  /// Unfold the cells the settle leaves inverted (step 6c, fibres/untangle.h) (default true).
+  /// Unfold the cells the settle leaves inverted (step 7, fibres/untangle_lattice.h) (default true).
   bool untangle_cells = true;
-  UntangleOptions untangle;     ///< the untangling (defaults: fibres/untangle.h)
-  /// L-BFGS iterations each of the (at most three) untangling attempts may spend, all its rounds
-  /// together, >= 0 (default 8000: a lattice that cannot be unfolded costs seconds, not minutes;
-  /// an iteration count, not a time, so that the result does not depend on the machine).
-  int untangle_iterations = 8000;
-  /// Weight of the soft pins that hold the fibre ends at their cast places when the untangling
-  /// lets them move, per squared local spacing (energy units of one well-shaped tetrahedron are
-  /// about 3), > 0 (default 30; stiffer pins make the untangling fail more often).
-  double end_anchor_weight = 30.0;
-  /// Farthest a fibre end may move from its cast place in the untangling, as a share of the
-  /// muscle length, [0, 1) (default 0.0095: with the cast ends within `placement.region_radius`
-  /// (0.01) of an area point, the ends stay within 0.02 of their areas, the check's limit).
-  double end_shift = 0.0095;
+  /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
+  /// fibres/untangle_lattice.h).
+  LatticeUntangleOptions untangle;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)

@@ -278,14 +278,10 @@ double percentile(std::vector<double> values, double q) {
 
 /// Inverted cells of a fibre lattice (see fibre_check.h). Each hexahedron (corners x_abc, a along
 /// r, b along s, c along the fibre) is split into the six tetrahedra of the Kuhn triangulation
-/// around the diagonal x_000 - x_111; with the permutation's parity applied, all six have the
+/// around the diagonal x_000 - x_111 (kuhn_tetrahedra(), fibres/fibre_grid.h); all six have the
 /// same sign as the lattice's frame (r, s, fibre) when the cell is not folded.
 void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int listed, CheckReport& report) {
-  static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
-  static const double parity[6] = {1, 1, 1, -1, -1, -1};
-  struct Cell {
-    std::array<Vec3, 8> x;  // index a + 2b + 4c
-  };
+  const auto& kuhn = kuhn_tetrahedra();
   std::vector<std::array<double, 6>> volumes;
   std::vector<std::array<double, 6>> scales;
   std::vector<std::array<int, 3>> where;  // (r, s, k) of each cell
@@ -295,21 +291,16 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int li
       if (l00 < 0 || l10 < 0 || l01 < 0 || l11 < 0) continue;
       const int lines[4] = {l00, l10, l01, l11};
       for (int k = 0; k + 1 < grid.points; ++k) {
-        Cell cell;
+        std::array<Vec3, 8> cell;  // index a + 2b + 4c
         for (int c = 0; c < 2; ++c)
-          for (int q = 0; q < 4; ++q) cell.x[static_cast<std::size_t>(q + 4 * c)] = fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
+          for (int q = 0; q < 4; ++q) cell[static_cast<std::size_t>(q + 4 * c)] = fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
         std::array<double, 6> vol{}, scale{};
-        for (int t = 0; t < 6; ++t) {
-          int corner = 0;
-          std::array<Vec3, 4> v;
-          v[0] = cell.x[0];
-          for (int step = 0; step < 3; ++step) {
-            corner |= 1 << perms[t][step];
-            v[static_cast<std::size_t>(step) + 1] = cell.x[static_cast<std::size_t>(corner)];
-          }
-          const Vec3 a = v[1] - v[0], b = v[2] - v[0], c = v[3] - v[0];
-          vol[static_cast<std::size_t>(t)] = parity[t] * a.dot(b.cross(c)) / 6.0;
-          scale[static_cast<std::size_t>(t)] = a.norm() * b.norm() * c.norm() / 6.0;
+        for (std::size_t t = 0; t < 6; ++t) {
+          const Vec3& v0 = cell[static_cast<std::size_t>(kuhn[t][0])];
+          const Vec3 a = cell[static_cast<std::size_t>(kuhn[t][1])] - v0, b = cell[static_cast<std::size_t>(kuhn[t][2])] - v0,
+                     c = cell[static_cast<std::size_t>(kuhn[t][3])] - v0;
+          vol[t] = a.dot(b.cross(c)) / 6.0;
+          scale[t] = a.norm() * b.norm() * c.norm() / 6.0;
         }
         volumes.push_back(vol);
         where.push_back({r, s, k});

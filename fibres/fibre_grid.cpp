@@ -1,6 +1,7 @@
 #include "fibres/fibre_grid.h"
 
 #include <cmath>
+#include <utility>
 #include <stdexcept>
 
 namespace fascicle {
@@ -49,6 +50,26 @@ FibreGrid fibre_grid(const Polylines& fibres) {
     slot = static_cast<int>(line);
   }
   return grid;
+}
+
+const std::array<std::array<int, 4>, 6>& kuhn_tetrahedra() {
+  // Axis orders (0 = r, 1 = s, 2 = fibre); the last three are odd permutations, whose
+  // tetrahedra have their two last corners swapped to be positive.
+  static const std::array<std::array<int, 4>, 6> tets = [] {
+    static const int orders[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
+    std::array<std::array<int, 4>, 6> out{};
+    for (int t = 0; t < 6; ++t) {
+      int corner = 0;
+      out[static_cast<size_t>(t)][0] = 0;
+      for (int step = 0; step < 3; ++step) {
+        corner |= 1 << orders[t][step];
+        out[static_cast<size_t>(t)][static_cast<size_t>(step) + 1] = corner;
+      }
+      if (t >= 3) std::swap(out[static_cast<size_t>(t)][2], out[static_cast<size_t>(t)][3]);
+    }
+    return out;
+  }();
+  return tets;
 }
 
 Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector<int>& r, const std::vector<int>& s) {

@@ -6,6 +6,7 @@
 /// (geometry/mesh.h, Polylines::cell_data); fibres from other tools have none and are then
 /// checked without cells.
 #include "geometry/mesh.h"
+#include <array>
 #include <vector>
 
 namespace fascicle {
@@ -33,6 +34,15 @@ struct FibreGrid {
 /// points (>= 2). Otherwise an empty grid (nr = ns = 0), which is not an error: such fibres are
 /// checked without cells.
 FibreGrid fibre_grid(const Polylines& fibres);
+
+/// The Kuhn split of a lattice cell, the one split used wherever cells are measured (the quality
+/// check's inverted cells, the untangling's tetrahedra). The corners of a hexahedral cell are
+/// numbered a + 2b + 4c (a = 1: one step along r, b: along s, c: along the fibre); the cell splits
+/// into six tetrahedra around its diagonal 0 - 7, one per order in which the three axes are
+/// stepped. Each entry lists a tetrahedron's corners, the first one 0, ordered so that its signed
+/// volume (v1 - v0) . ((v2 - v0) x (v3 - v0)) has the sign of the frame (r, s, fibre) when the cell
+/// is not folded (for the unit cube: +1/6 each).
+const std::array<std::array<int, 4>, 6>& kuhn_tetrahedra();
 
 /// Fibres with their lattice indices as cell data arrays `fibre_r`, `fibre_s`.
 /// `lines`, `r` and `s` have the same size (throws std::invalid_argument otherwise).

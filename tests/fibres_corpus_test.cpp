@@ -46,8 +46,10 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle): on 2026-11-21 with the untangling, 20 muscles passed
-  // every criterion and 30 of 47 had no inverted cell (docs/BENCHMARKS.md, "Decompose").
-  CHECK(passed >= 18);
-  CHECK(unfolded >= 28);
+  // Floors, not the goal (every muscle): on 2026-11-21 19:05 (ends cast from an unfolded grid,
+  // untangling with the ends held first and the final pins inside the loop) 23 muscles passed
+  // every criterion and 39 of 47 had no inverted cell (docs/BENCHMARKS.md, "Decompose"); before,
+  // 20 and 30.
+  CHECK(passed >= 23);
+  CHECK(unfolded >= 39);
 }

@@ -1,17 +1,20 @@
 // Barrier untangling of tetrahedral cells (fibres/untangle.h).
+#include "fibres/fibre_grid.h"
 #include "fibres/untangle.h"
 #include "geometry/errors.h"
 
 #include <catch2/catch.hpp>
 #include <Eigen/LU>
+#include <algorithm>
 #include <random>
+#include <set>
 
 using namespace fascicle;
 
 namespace {
 
 // An n x n x n grid of the unit cube, boundary fixed, each cell split into the six Kuhn
-// tetrahedra around its diagonal with the parity that makes them positive, reference = the cell.
+// tetrahedra of the quality check (kuhn_tetrahedra()), reference = the cell.
 struct Grid {
   int n = 0;
   std::vector<Vec3> positions;
@@ -30,18 +33,10 @@ Grid make_grid(int n) {
         g.positions.emplace_back(i * h, j * h, k * h);
         g.fixed.push_back(i == 0 || j == 0 || k == 0 || i == n - 1 || j == n - 1 || k == n - 1 ? 1 : 0);
       }
-  static const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
   for (int k = 0; k + 1 < n; ++k)
     for (int j = 0; j + 1 < n; ++j)
       for (int i = 0; i + 1 < n; ++i)
-        for (int t = 0; t < 6; ++t) {
-          std::array<int, 4> local{0, 0, 0, 0};
-          int corner = 0;
-          for (int step = 0; step < 3; ++step) {
-            corner |= 1 << perms[t][step];
-            local[static_cast<std::size_t>(step) + 1] = corner;
-          }
-          if (t >= 3) std::swap(local[2], local[3]);
+        for (const std::array<int, 4>& local : kuhn_tetrahedra()) {
           UntangleTet tet;
           for (int v = 0; v < 4; ++v) {
             const int c = local[static_cast<std::size_t>(v)];
@@ -184,4 +179,67 @@ TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells
   CHECK(unfolded.report.quality.inside_fraction == 1.0);
   CHECK(unfolded.report.quality.attachment.origin_max <= 0.02);
   CHECK(unfolded.report.quality.attachment.insertion_max <= 0.02);
+}
+
+#include "fibres/untangle_lattice.h"
+#include "springs/lattice.h"
+
+TEST_CASE("kuhn split: six positive tetrahedra around the diagonal that fill the cell", "[fibres][untangle]") {
+  const auto& kuhn = kuhn_tetrahedra();
+  auto corner = [](int c) { return Vec3(c & 1, (c >> 1) & 1, (c >> 2) & 1); };
+  double total = 0.0;
+  std::set<std::array<int, 4>> distinct;
+  for (const std::array<int, 4>& t : kuhn) {
+    CHECK(t[0] == 0);
+    CHECK(std::count(t.begin(), t.end(), 7) == 1);
+    const Vec3 a = corner(t[1]) - corner(t[0]), b = corner(t[2]) - corner(t[0]), c = corner(t[3]) - corner(t[0]);
+    const double volume = a.dot(b.cross(c)) / 6.0;
+    CHECK(volume == Approx(1.0 / 6.0));
+    total += volume;
+    std::array<int, 4> sorted = t;
+    std::sort(sorted.begin(), sorted.end());
+    distinct.insert(sorted);
+  }
+  CHECK(distinct.size() == 6);
+  CHECK(total == Approx(1.0));  // positive and summing to the cube: they tile it
+}
+
+TEST_CASE("lattice cell tetrahedra: the template lattice and its mirror image are unfolded, a swap folds it",
+          "[fibres][untangle]") {
+  springs::LatticeOptions o;
+  o.nr = 5;
+  o.ns = 6;
+  o.resolution = 7;
+  const springs::Lattice lattice = springs::build_lattice(o);
+  std::vector<Vec3> x = lattice.system.positions;
+  const std::vector<UntangleTet> tets = lattice_cell_tets(lattice, x);
+  CHECK(tets.size() == 6u * 4u * 5u * 6u);
+  long counted = 0;
+  for (const UntangleTet& t : tets) counted += t.counted ? 1 : 0;
+  CHECK(counted == 6 * 2 * 3 * 6);  // the cells between interior lines
+  for (double d : tet_jacobian_dets(x, tets)) CHECK(d == Approx(1.0));
+  CHECK(inverted_tets(x, tets) == 0);
+  std::vector<Vec3> mirrored = x;
+  for (Vec3& p : mirrored) p.x() = -p.x();
+  CHECK(inverted_tets(mirrored, lattice_cell_tets(lattice, mirrored)) == 0);
+  std::swap(x[static_cast<std::size_t>(lattice.index(2, 2, 3))], x[static_cast<std::size_t>(lattice.index(3, 2, 3))]);
+  CHECK(inverted_tets(x, tets) > 0);
+}
+
+TEST_CASE("untangle in the decomposition: points fixed just inside at the end do not fold cells",
+          "[fibres][untangle][data]") {
+  FASCICLE_REQUIRE_DATA();
+  // LHDL right gluteus medius: the untangling leaves points outside that must be fixed just
+  // inside; fixed after the untangling, those pins fold cells (VHM gracilis: 2 cells before
+  // 2026-11-21). Now the cells around them are untangled again with the pins fixed.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
+  const Decomposition d = decompose(soup, {}, DecomposeOptions{});
+  const nlohmann::json u = d.report.to_json()["untangle"];
+  INFO(u.dump());
+  REQUIRE(u["pinned"].get<long>() > 0);  // the case this test is about
+  CHECK(u["inverted_left"].get<long>() == 0);
+  CHECK(d.report.quality.inverted_cells == 0);
+  CHECK(d.report.quality.inside_fraction == 1.0);
+  CHECK(d.report.quality.attachment.origin_max <= 0.02);
+  CHECK(d.report.quality.attachment.insertion_max <= 0.02);
 }

@@ -1,0 +1,107 @@
+#pragma once
+/// \file untangle_lattice.h
+/// Step 8 of the decomposition (docs/decompose.md): the cells of a settled fibre lattice that are
+/// folded are unfolded, with every lattice point kept inside the muscle.
+///
+/// The lattice's cells are split as the quality check splits them (kuhn_tetrahedra(),
+/// fibres/fibre_grid.h) and handed to the barrier untangling of fibres/untangle.h (Garanzha et al.
+/// 2021), each tetrahedron measured against its own settled shape where that shape is good, else
+/// against its layer's mean cell. The work is local first (the points within 2, then 6 lattice
+/// steps of a folded cell move), then the whole lattice; a wider region that frees no more points
+/// is skipped. The first attempt holds the fibre ends and starts from the settled lattice (enough
+/// where the folds are local, and cheap); while cells stay folded, a second starts again from the
+/// settled lattice with the ends free (soft pins at their cast places, at most `end_shift` of the
+/// muscle length from them: a cell against an end face can need that), and a third goes on from
+/// there with the ends held; the result with the fewest folded cells stays. Containment is part
+/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round); an
+/// attempt stops when a round does not fold fewer cells than the rounds before it. At the end a
+/// point still outside is fixed just inside and the cells around it are untangled again with it
+/// fixed (`pin_rounds`; undone when that does not fold fewer cells), so that no step after the
+/// untangling moves a lattice point and the pins do not fold cells behind the untangling's back.
+#include "fibres/untangle.h"
+#include "geometry/mesh.h"
+#include "morph/surface_query.h"
+#include "springs/lattice.h"
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace fascicle {
+
+/// Options of untangle_lattice().
+struct LatticeUntangleOptions {
+  UntangleOptions solver;        ///< the barrier solver (defaults: fibres/untangle.h)
+  /// L-BFGS iterations each of the (at most three) attempts may spend, all its rounds together,
+  /// >= 0 (default 8000: a lattice that cannot be unfolded costs seconds, not minutes; an
+  /// iteration count, not a time, so that the result does not depend on the machine).
+  int iterations = 8000;
+  /// Weight of the soft pins that hold the fibre ends at their cast places when the first attempt
+  /// lets them move, per squared local spacing (energy units of one well-shaped tetrahedron are
+  /// about 3), > 0 (default 30; stiffer pins make the untangling fail more often).
+  double end_anchor_weight = 30.0;
+  /// Farthest a fibre end may move from its cast place, as a share of the muscle length, [0, 1)
+  /// (default 0.0095: with the cast ends within 0.01 of an area point, the ends stay within 0.02
+  /// of their areas, the check's limit).
+  double end_shift = 0.0095;
+  /// Weight of the first soft pin of a point moved outside, per squared local spacing (4x each
+  /// round), > 0 (default 30).
+  double contact_weight = 30.0;
+  /// Containment rounds of an attempt (soft pins, untangle again), >= 0 (default 6).
+  int contact_rounds = 6;
+  /// Rounds of "fix the points still outside just inside, untangle again with them fixed" at the
+  /// end, >= 0 (default 3; the pins of the last round stay even if they fold a cell, which the
+  /// report then counts).
+  int pin_rounds = 3;
+  /// Depth of a contact point below the surface, in local lattice spacings, (0, 1) (default 0.3).
+  double contact_depth = 0.3;
+  /// Throws OptionError naming the first bad field.
+  void validate() const;
+};
+
+/// What untangle_lattice() did.
+struct LatticeUntangleReport {
+  nlohmann::json runs = nlohmann::json::array();  ///< one entry per untangle() run (its report, radius, round...)
+  long inverted_before = 0;   ///< counted folded tetrahedra of the settled lattice
+  long inverted_left = 0;     ///< and at the end
+  int budget_left = 0;        ///< iterations left to the last attempt
+  long pinned = 0;            ///< points fixed just inside at the end of an attempt
+  std::string kept;           ///< the attempt kept: held_ends, free_ends or free_then_held_ends
+  nlohmann::json to_json() const;
+};
+
+/// Mean length of the springs at each point of `system` (its local lattice spacing).
+std::vector<double> lattice_local_spacing(const springs::SpringSystem& system);
+
+/// A point just inside the muscle for the lattice point q (usually outside): the closest surface
+/// point moved `depth` local spacings inwards (halved until it is inside); where the muscle is too
+/// thin for that, a point between the closest surface point and a lattice neighbour that is inside
+/// (`lattice_points`: how many of the system's points are lattice points, the rest are anchors).
+/// May return a point that is not inside when nothing else is found.
+Vec3 lattice_contact_point(const springs::SpringSystem& system, int lattice_points, const SurfaceQuery& query, int q,
+                           double depth, const std::vector<double>& spacing);
+
+/// The tetrahedra of all cells of `lattice` at positions `x` (kuhn_tetrahedra() of every cell),
+/// oriented like the total volume of the interior cells. Counted: the cells between interior
+/// lattice lines (the output fibres, which the check counts); the cells against the surface ring
+/// are in the energy only, with eps never below 0.5 (a soft preference that keeps the interior
+/// inside the ring without making a fold there a barrier). Reference of a tetrahedron: its own
+/// shape at `x` where that is good (det J > 0.2 and distortion tr(J^T J) / (3 det^(2/3)) < 2
+/// against the layer's box), else the box of its layer's mean edge lengths along r, s and t.
+std::vector<UntangleTet> lattice_cell_tets(const springs::Lattice& lattice, const std::vector<Vec3>& x);
+
+/// Counted tetrahedra of `tets` with det J <= 0 at `x`.
+long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& tets);
+
+/// Unfolds the folded cells of the settled `lattice` whose points are `system` (positions, fixed
+/// flags; the springs are used only to find a point's neighbours and local spacing; points after
+/// lattice.point_count() are anchors and stay). The fibre ends (layers t = 0 and t = 1, interior
+/// lines) are fixed on entry and on return. `query` is the muscle's surface, `muscle_length` its
+/// length (fibres/fibre_check.h, muscle_length()). Method: see the file comment. On return the
+/// interior lattice points that were outside are fixed just inside, and `inverted_left` counts the
+/// folded tetrahedra after those pins. Throws OptionError for bad options.
+LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
+                                       const SurfaceQuery& query, double muscle_length,
+                                       const LatticeUntangleOptions& options = {});
+
+}  // namespace fascicle
