@@ -196,6 +196,8 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --resolution 1 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --corner-twist 200 2>/dev/null") == 18);
+  CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + (dir.path() / "missing.off").string() + " -o " + out +
                           " 2>/dev/null") == 3);
   CHECK_FALSE(std::filesystem::exists(out));
