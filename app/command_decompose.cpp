@@ -126,6 +126,9 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--max-face-depth", o.placement.max_face_depth,
                   "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
       ->capture_default_str();
+  cmd->add_option("--corner-twist", o.placement.corner_twist_deg,
+                  "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
+      ->capture_default_str();
   cmd->add_option("--cast-rounds", o.cast_rounds,
                   "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
       ->capture_default_str();

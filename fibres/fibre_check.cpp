@@ -267,6 +267,46 @@ double polyline_length(const std::vector<Vec3>& line) {
   return length;
 }
 
+/// The far samples' breakdown (FarSamples): `distances` to the nearest fibre in mesh units.
+FarSamples far_samples(const std::vector<Vec3>& samples, const std::vector<double>& distances, double spacing,
+                       double threshold, const TriangleMesh& muscle, const SurfaceQuery& query,
+                       const Attachments& areas) {
+  FarSamples far;
+  far.threshold = threshold;
+  if (samples.empty() || !(spacing > 0.0)) return far;
+  // Position along the principal axis of the vertices, oriented from the origin area's centroid
+  // towards the insertion's.
+  const PrincipalAxes principal = principal_axes(muscle.positions);
+  Vec3 axis = principal.major();
+  if ((areas.insertion.centroid() - areas.origin.centroid()).dot(axis) < 0.0) axis = -axis;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Vec3& p : muscle.positions) {
+    const double t = (p - principal.mean).dot(axis);
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  }
+  const double extent = hi > lo ? hi - lo : 1.0;
+  std::vector<double> depth(samples.size());
+  tbb::parallel_for(std::size_t(0), samples.size(),
+                    [&](std::size_t i) { depth[i] = query.closest_point(samples[i]).distance / spacing; });
+  long far_count = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const bool is_far = distances[i] / spacing > threshold;
+    far_count += is_far ? 1 : 0;
+    const double t = ((samples[i] - principal.mean).dot(axis) - lo) / extent;
+    const auto a = static_cast<std::size_t>(
+        std::clamp(static_cast<int>(std::floor(t * FarSamples::kAlongBins)), 0, FarSamples::kAlongBins - 1));
+    ++far.along_samples[a];
+    far.along_far[a] += is_far ? 1 : 0;
+    std::size_t d = 0;
+    while (d + 1 < static_cast<std::size_t>(FarSamples::kDepthBins) && depth[i] >= FarSamples::depth_edges[d]) ++d;
+    ++far.depth_samples[d];
+    far.depth_far[d] += is_far ? 1 : 0;
+  }
+  far.fraction = static_cast<double>(far_count) / static_cast<double>(samples.size());
+  return far;
+}
+
 /// Nearest-rank percentile of unsorted values (q in (0, 1]).
 double percentile(std::vector<double> values, double q) {
   if (values.empty()) return 0.0;
@@ -521,6 +561,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       const double spacing = report.coverage.ideal_spacing;
       report.coverage.mean = total / static_cast<double>(distances.size()) / spacing;
       report.coverage.max = largest / spacing;
+      report.coverage.far = far_samples(samples, distances, spacing, options.max_coverage_p95, muscle, query, areas);
       report.coverage.p95 = percentile(std::move(distances), 0.95) / spacing;
     }
   }
@@ -586,7 +627,15 @@ nlohmann::json CheckReport::to_json() const {
         {"max", coverage.max},
         {"ideal_spacing", coverage.ideal_spacing},
         {"volume", coverage.volume},
-        {"samples", coverage.samples}}},
+        {"samples", coverage.samples},
+        {"far",
+         {{"threshold", coverage.far.threshold},
+          {"fraction", coverage.far.fraction},
+          {"along_samples", coverage.far.along_samples},
+          {"along_far", coverage.far.along_far},
+          {"depth_edges", {0.0, 1.0, 2.0, 4.0}},
+          {"depth_samples", coverage.far.depth_samples},
+          {"depth_far", coverage.far.depth_far}}}}},
       {"attachment",
        {{"origin_max", attachment.origin_max},
         {"origin_mean", attachment.origin_mean},
@@ -635,6 +684,24 @@ std::string CheckReport::to_table() const {
   out += line;
   out += "fibres " + std::to_string(fibres) + ", points " + std::to_string(points) + ", ideal spacing " +
          fmt_double(coverage.ideal_spacing) + " (" + std::to_string(coverage.samples) + " samples)\n";
+  if (coverage.samples > 0) {
+    // Where the far samples are: share of each tenth along the muscle and of each depth band.
+    auto share = [](int part, int whole) {
+      char text[16];
+      std::snprintf(text, sizeof(text), "%.0f", whole > 0 ? 100.0 * part / whole : 0.0);
+      return std::string(text);
+    };
+    char total[32];
+    std::snprintf(total, sizeof(total), "%.1f", 100.0 * coverage.far.fraction);
+    out += "far samples (> " + fmt_double(coverage.far.threshold) + " spacings): " + total +
+           " %; per tenth, origin to insertion:";
+    for (int b = 0; b < FarSamples::kAlongBins; ++b)
+      out += " " + share(coverage.far.along_far[static_cast<std::size_t>(b)], coverage.far.along_samples[static_cast<std::size_t>(b)]);
+    out += " %; by depth 0-1, 1-2, 2-4, 4+ spacings:";
+    for (int b = 0; b < FarSamples::kDepthBins; ++b)
+      out += " " + share(coverage.far.depth_far[static_cast<std::size_t>(b)], coverage.far.depth_samples[static_cast<std::size_t>(b)]);
+    out += " %\n";
+  }
   out += "length mean " + fmt_double(length.mean) + ", min " + fmt_double(length.min) + ", max " +
          fmt_double(length.max) + ", cv " + fmt_double(length.cv) + "; largest turning angle " +
          fmt_double(max_turning_angle_deg) + " deg\n";

@@ -74,6 +74,26 @@ struct OutsidePoint {
   double distance = 0.0;         ///< distance to the surface, mesh units
 };
 
+/// Where the poorly covered volume is: the samples farther than `threshold` ideal spacings from
+/// every fibre ("far" samples), counted by position along the muscle and by depth below its
+/// surface, so that a failed coverage criterion says whether the ends, the flanks (just under
+/// the surface) or the inside are thin.
+struct FarSamples {
+  static constexpr int kAlongBins = 10;  ///< tenths of the muscle's length
+  static constexpr int kDepthBins = 4;   ///< depth below the surface, see depth_edges
+  /// Upper depth edges of the depth bins, in ideal spacings: [0,1), [1,2), [2,4), [4,inf).
+  static constexpr double depth_edges[kDepthBins] = {1.0, 2.0, 4.0, 1e300};
+  double threshold = 0.0;  ///< distance in ideal spacings beyond which a sample is far (the
+                           ///< check's max_coverage_p95)
+  double fraction = 0.0;   ///< share of all samples that are far
+  /// Samples and far samples in each tenth along the principal axis of the muscle's vertices
+  /// (the axis of muscle_length), bin 0 at the origin end (the end nearer the origin area's
+  /// centroid).
+  std::array<int, kAlongBins> along_samples{}, along_far{};
+  /// Samples and far samples by depth (distance to the surface) in ideal spacings.
+  std::array<int, kDepthBins> depth_samples{}, depth_far{};
+};
+
 /// Coverage figures: sample-to-nearest-fibre distances in ideal spacings.
 struct CoverageFigures {
   double mean = 0.0;           ///< mean distance / ideal_spacing
@@ -82,6 +102,7 @@ struct CoverageFigures {
   double ideal_spacing = 0.0;  ///< sqrt(V / (F L)), mesh units
   double volume = 0.0;         ///< muscle volume V, mesh units cubed
   int samples = 0;             ///< samples drawn inside the muscle
+  FarSamples far;              ///< where the samples beyond the threshold lie
 };
 
 /// Attachment figures: fibre end to area distances as fractions of the muscle length.

@@ -217,6 +217,8 @@ void PlacementOptions::validate() const {
     throw OptionError("face_shrink_rounds: must be in 0..100, got " + std::to_string(face_shrink_rounds));
   if (!(min_band > 0.0 && min_band < 3.0))
     throw OptionError("min_band: must be in (0, 3), got " + std::to_string(min_band));
+  if (!(corner_twist_deg >= -180.0 && corner_twist_deg <= 180.0))
+    throw OptionError("corner_twist_deg: must be in [-180, 180], got " + std::to_string(corner_twist_deg));
 }
 
 nlohmann::json PlacementReport::to_json() const {
@@ -425,11 +427,12 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       }
       level_twist.swap(smoothed);
     }
+    const double corner_twist = options.corner_twist_deg * kPi / 180.0;
     const auto twist_at = [&](double u) {
       const double x = std::clamp(u * kLevels - 0.5, 0.0, static_cast<double>(kLevels - 1));
       const auto b = std::min(static_cast<std::size_t>(x), static_cast<std::size_t>(kLevels - 2));
       const double f = x - static_cast<double>(b);
-      return (1.0 - f) * level_twist[b] + f * level_twist[b + 1];
+      return corner_twist + (1.0 - f) * level_twist[b] + f * level_twist[b + 1];
     };
     report.twist_deg = twist_at(0.0) * 180.0 / kPi;
     report.twist_end_deg = twist_at(1.0) * 180.0 / kPi;

@@ -272,6 +272,47 @@ TEST_CASE("fibres bunched in one corner fail the coverage criterion", "[fibres][
   CHECK(has_failed(report, "coverage"));
 }
 
+TEST_CASE("far samples are counted where they lie along the muscle and in depth", "[fibres][check]") {
+  // Fibres only over the origin half of the box: the insertion half is thin from the middle on.
+  // n = 4, L = kSize: ideal spacing sqrt(2 kSize^3 / (16 kSize)) = 3.54, so a sample is far
+  // beyond 7.07 from every fibre: none in the origin half (at most 1.77 off a fibre) nor in the
+  // tenth next to the middle, all in the tenth at the insertion end (at least 8 from the ends).
+  const TriangleMesh box = long_box(4);
+  const Attachments areas = automatic_attachments(box);
+  const double origin_x = areas.origin.centroid().x() > 0 ? kSize : -kSize;
+  const Polylines fibres = straight_lattice(4, 11, origin_x, 0.0);
+  const CheckReport report = check_fibres(fibres, box, areas);
+  const FarSamples& far = report.coverage.far;
+  CHECK(far.threshold == 2.0);
+  int along = 0, along_far = 0, depth = 0, depth_far = 0;
+  for (int b = 0; b < FarSamples::kAlongBins; ++b) {
+    along += far.along_samples[static_cast<std::size_t>(b)];
+    along_far += far.along_far[static_cast<std::size_t>(b)];
+    CHECK(far.along_samples[static_cast<std::size_t>(b)] > 1000);  // about 2000 a tenth
+  }
+  for (int b = 0; b < FarSamples::kDepthBins; ++b) {
+    depth += far.depth_samples[static_cast<std::size_t>(b)];
+    depth_far += far.depth_far[static_cast<std::size_t>(b)];
+  }
+  CHECK(along == report.coverage.samples);
+  CHECK(depth == report.coverage.samples);
+  CHECK(along_far == depth_far);
+  CHECK(far.fraction == Approx(static_cast<double>(along_far) / report.coverage.samples).epsilon(1e-12));
+  for (int b = 0; b <= 5; ++b) CHECK(far.along_far[static_cast<std::size_t>(b)] == 0);
+  CHECK(far.along_far[9] == far.along_samples[9]);
+  CHECK(far.fraction == Approx(0.15).margin(0.01));  // the insertion end beyond x = 7.07 of 20
+  // Depth below the surface: the box is 10 wide, so no sample lies deeper than 5 = 1.41 spacings.
+  CHECK(far.depth_samples[0] > 0);
+  CHECK(far.depth_samples[1] > 0);
+  CHECK(far.depth_samples[2] == 0);
+  CHECK(far.depth_samples[3] == 0);
+  const nlohmann::json j = report.to_json().at("coverage").at("far");
+  CHECK(j.at("fraction").get<double>() == far.fraction);
+  CHECK(j.at("along_far").at(9).get<int>() == far.along_far[9]);
+  CHECK(j.at("depth_samples").size() == 4);
+  CHECK(report.to_table().find("far samples (> 2 spacings)") != std::string::npos);
+}
+
 TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
   const TriangleMesh box = long_box(1);
   Polylines fibres;

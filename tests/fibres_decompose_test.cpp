@@ -129,6 +129,28 @@ TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "
     CHECK(j.contains(key));
 }
 
+TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
+  // The capsule flattened to a 5 : 1 cross-section (semi-axes 3 and 0.6), like a strap or
+  // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0) the settled
+  // lattice stays away from the edges; with a lattice corner on each (the default, 45 degrees)
+  // the fibres reach them (docs/decompose.md, step 4).
+  TriangleMesh mesh = capsule();
+  for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
+  DecomposeOptions options;
+  options.untangle.iterations = 2000;
+  const Decomposition corner = decompose_repaired(mesh, Landmarks{}, options);
+  options.placement.corner_twist_deg = 0.0;
+  const Decomposition side = decompose_repaired(mesh, Landmarks{}, options);
+  const CheckReport& a = corner.report.quality;
+  const CheckReport& b = side.report.quality;
+  CAPTURE(a.coverage.p95, b.coverage.p95, a.coverage.far.fraction, b.coverage.far.fraction);
+  CHECK(a.inside_fraction == 1.0);
+  CHECK(std::max(a.attachment.origin_max, a.attachment.insertion_max) <= 0.02);
+  CHECK(a.coverage.p95 <= 2.0);
+  CHECK(a.coverage.far.fraction < 0.05);
+  CHECK(b.coverage.p95 > a.coverage.p95);
+}
+
 TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decompose]") {
   const TriangleMesh mesh = capsule();
   DecomposeOptions zero;
@@ -150,6 +172,9 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   backend.backend = "quantum";
   CHECK_THROWS_AS(decompose_repaired(mesh, {}, backend), OptionError);
   CHECK_THROWS_AS(parse_rest_shape("loose"), OptionError);
+  DecomposeOptions twist;
+  twist.placement.corner_twist_deg = 200.0;
+  CHECK_THROWS_WITH(twist.validate(), Catch::Contains("corner_twist_deg"));
   Landmarks same;
   same.origin = same.insertion = {Vec3(0, 0, 5.0), Vec3(0.1, 0, 5.0)};
   same.origin_source = same.insertion_source = "same.xyz";
@@ -170,6 +195,8 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --fibres 0 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --resolution 1 2>/dev/null") == 18);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --corner-twist 200 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + (dir.path() / "missing.off").string() + " -o " + out +
                           " 2>/dev/null") == 3);
