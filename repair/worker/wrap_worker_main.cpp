@@ -111,12 +111,13 @@ int main(int argc, char** argv) {
     }
   }
 #if !defined(__SANITIZE_ADDRESS__)
-  // (AddressSanitizer reserves terabytes of address space at start; it cannot run under a limit.)
   if (memory_mb > 0) {
     const rlim_t bytes = static_cast<rlim_t>(memory_mb) * 1024 * 1024;
     const rlimit limit{bytes, bytes};
     if (::setrlimit(RLIMIT_AS, &limit) != 0) return kWorkerBadRequest;
   }
+#else
+  (void)memory_mb;  // AddressSanitizer reserves terabytes of address space: no limit under it
 #endif
   try {
     return serve();
