@@ -7,12 +7,12 @@
 #include "app/commands.h"
 #include "geometry/atomic_file.h"
 #include "geometry/errors.h"
+#include "geometry/subprocess.h"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include <unistd.h>
-#include <sys/prctl.h>
 #include <sys/wait.h>
 
 #include <csignal>
@@ -125,29 +125,24 @@ std::vector<Muscle> list_muscles(const BatchArgs& args) {
   return muscles;
 }
 
-// Runs `argv` with stdout/stderr to `log`, waits; returns the exit code (128 + signal).
+// Runs `argv` with stdout/stderr to `log`, waits; returns the exit code (128 + signal), -1 when
+// it cannot be started or waited for. The batch runs this from several threads at once, so the
+// child is started with posix_spawn, not fork (geometry/subprocess.h). A killed batch takes its
+// decompose processes with it (die_with_parent; their outputs are atomic: a killed one leaves at
+// most a temporary file, removed when the batch is resumed).
 int run_process(const std::vector<std::string>& argv, const std::string& log) {
-  const pid_t pid = fork();
-  if (pid < 0) return -1;
-  if (pid == 0) {
-    // A killed batch takes its decompose processes with it (their outputs are atomic: a killed
-    // one leaves at most a temporary file, removed when the batch is resumed).
-    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-    FILE* f = std::fopen(log.c_str(), "w");
-    if (f) {
-      dup2(fileno(f), 1);
-      dup2(fileno(f), 2);
-    }
-    std::vector<char*> c;
-    for (const std::string& a : argv) c.push_back(const_cast<char*>(a.c_str()));
-    c.push_back(nullptr);
-    execv(c[0], c.data());
-    std::_Exit(127);
+  SpawnOptions spawn;
+  spawn.argv = argv;
+  spawn.log_file = log;
+  pid_t pid = -1;
+  try {
+    pid = spawn_process(spawn);
+  } catch (const Error& e) {
+    spdlog::error("batch: {}", e.what());
+    return -1;
   }
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return -1;
-  }
+  const int status = wait_process(pid);
+  if (status == -1) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 

@@ -73,6 +73,9 @@ void add_repair_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--wrap-seconds", args->options.wrap_seconds, "Time budget of the alpha-wrap fallback")
       ->capture_default_str();
+  cmd->add_option("--wrap-memory-mb", args->options.wrap_memory_mb,
+                  "Address-space limit of each alpha-wrap worker process, MiB (0: none)")
+      ->capture_default_str();
   cmd->callback([args] { run_repair(*args); });
 }
 

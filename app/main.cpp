@@ -3,6 +3,7 @@
 
 #include "app/commands.h"
 #include "geometry/errors.h"
+#include "geometry/subprocess.h"
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -28,6 +29,8 @@ void on_time_limit(int) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Started by `fascicle batch`: end with it.
+  fascicle::die_with_parent_if_asked();
   auto logger = spdlog::stderr_color_mt("fascicle");
   spdlog::set_default_logger(logger);
   spdlog::set_pattern("%^%l%$: %v");

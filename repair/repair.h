@@ -73,6 +73,13 @@ struct RepairOptions {
   /// child process that is stopped when the budget is spent; the finest genus-0 wrap found by
   /// then is kept.
   double wrap_seconds = 40.0;
+  // The program that runs each wrap attempt (`fascicle-wrap-worker`) is found as
+  // detail::find_wrap_worker describes: the environment variable FASCICLE_WRAP_WORKER, else beside
+  // the running program, else in the build folder; a wrap with no worker is InputError(file_missing).
+  /// Address-space limit of the wrap worker, MiB (default 0: none beyond the limits the process
+  /// itself runs under). A wrap that needs more ends the repair with ErrorCode::repair_failed
+  /// and a message saying so.
+  long wrap_memory_mb = 0;
   /// Sample points per side for the two-sided Hausdorff estimate (default 20000).
   int hausdorff_samples = 20000;
 

@@ -155,6 +155,7 @@ class RepairPipeline {
   TriangleMesh wrap(const TriangleMesh& cleaned, double diagonal) {
     const double area = surface_area(cleaned);
     const double finest = options_.wrap_alpha * diagonal;
+    const std::string worker = detail::find_wrap_worker("");  // throws when missing
     const auto wrap_start = Clock::now();
     std::string last_failure;
     double last_wrap_seconds = 0.0;
@@ -174,7 +175,7 @@ class RepairPipeline {
       }
       std::optional<TriangleMesh> result;
       step("alpha_wrap", [&] {
-        result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left);
+        result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left, worker, options_.wrap_memory_mb);
         return result ? static_cast<long>(result->triangles.size()) : 0L;
       }, "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
       last_wrap_seconds = report_.steps.back().seconds;

@@ -23,6 +23,7 @@ void RepairOptions::validate() const {
   if (max_wrap_faces < 1000) bad("max_wrap_faces", static_cast<double>(max_wrap_faces), ">= 1000");
   if (!(wrap_seconds > 0.0)) bad("wrap_seconds", wrap_seconds, "> 0");
   if (hausdorff_samples < 0) bad("hausdorff_samples", hausdorff_samples, ">= 0");
+  if (wrap_memory_mb != 0 && wrap_memory_mb < 64) bad("wrap_memory_mb", static_cast<double>(wrap_memory_mb), "0 (none) or >= 64");
 }
 
 namespace {

@@ -280,25 +280,10 @@ TEST_CASE("limits: 200 000 disjoint triangles read in bounded memory and repair 
   CHECK(static_cast<long long>(usage.ru_maxrss) * 1024 < (2LL << 30));
 }
 
-namespace {
-
-/// Processes (other than this one) whose command line mentions `needle`.
-std::vector<int> processes_mentioning(const std::string& needle) {
-  std::vector<int> pids;
-  for (const auto& entry : fs::directory_iterator("/proc")) {
-    const std::string name = entry.path().filename().string();
-    if (name.empty() || !std::all_of(name.begin(), name.end(), ::isdigit)) continue;
-    std::ifstream in(entry.path() / "cmdline", std::ios::binary);
-    const std::string cmdline((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (cmdline.find(needle) != std::string::npos && std::stoi(name) != ::getpid()) pids.push_back(std::stoi(name));
-  }
-  return pids;
-}
-
-}  // namespace
-
-// The forked alpha-wrap worker dies with its parent (PR_SET_PDEATHSIG in repair/alpha_wrap.cpp):
-// a --time-limit that fires during a wrap must not leave it running on as an orphan.
+// The alpha-wrap worker dies with its parent (PR_SET_PDEATHSIG asked for through
+// geometry/subprocess.h): a --time-limit that fires during a wrap must not leave it running on as
+// an orphan. The worker's command line does not name the input, so the processes are found by a
+// mark in their environment, which the worker inherits.
 TEST_CASE("limits: a time limit during alpha wrapping leaves no worker process behind", "[orphan][reliability]") {
   test::TempDir dir;
   constexpr int n = 60000;  // disjoint triangles: local repair cannot merge them, wrapping must
@@ -314,11 +299,12 @@ TEST_CASE("limits: a time limit during alpha wrapping leaves no worker process b
   const std::string input = dir.file("pieces.ply");
   write_triangle_mesh(input, mesh);
   // A very fine alpha makes the wrap far longer than the 3 s limit.
-  const int code = test::run_command("'" + test::program() + "' --quiet --time-limit 3 repair '" + input + "' -o '" +
+  const std::string mark = test::unique_mark();
+  const int code = test::run_command(mark + " '" + test::program() + "' --quiet --time-limit 3 repair '" + input + "' -o '" +
                                      dir.file("out.off") + "' --components merge --wrap-alpha 0.00005 --wrap-seconds 600 2>/dev/null");
   REQUIRE(code == exit_code(ErrorCode::time_limit));
   ::usleep(500 * 1000);
-  const std::vector<int> left = processes_mentioning(input);
+  const std::vector<int> left = test::processes_with_environment(mark);
   for (int pid : left) ::kill(pid, SIGKILL);  // do not leave them running after the test
   CHECK(left.empty());
 }

@@ -3,11 +3,14 @@
 // running the program as a user would.
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 #include <vector>
@@ -65,6 +68,34 @@ inline int run_command(const std::string& command) {
   const int status = std::system(command.c_str());
   if (status == -1) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/// Processes other than this one whose environment holds `entry` (NAME=VALUE, exactly): how a test
+/// finds the processes it started, and theirs, whatever their command lines (a child inherits the
+/// environment). A zombie's environment is unreadable, so a process that died and awaits its
+/// parent's wait is not counted.
+inline std::vector<int> processes_with_environment(const std::string& entry) {
+  std::vector<int> pids;
+  std::error_code ec;
+  for (const auto& dir : std::filesystem::directory_iterator("/proc", ec)) {
+    const std::string name = dir.path().filename().string();
+    if (name.empty() || !std::all_of(name.begin(), name.end(), ::isdigit) || std::stoi(name) == ::getpid()) continue;
+    std::ifstream in(dir.path() / "environ", std::ios::binary);
+    const std::string environment((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (std::size_t at = 0; (at = environment.find(entry, at)) != std::string::npos; at += entry.size()) {
+      if ((at == 0 || environment[at - 1] == '\0') &&
+          (at + entry.size() == environment.size() || environment[at + entry.size()] == '\0')) {
+        pids.push_back(std::stoi(name));
+        break;
+      }
+    }
+  }
+  return pids;
+}
+
+/// A NAME=VALUE environment entry no other run uses, to mark the processes a test starts.
+inline std::string unique_mark() {
+  return "FASCICLE_TEST_MARK=" + std::to_string(::getpid()) + "-" + std::to_string(std::random_device{}());
 }
 
 }  // namespace fascicle::test
