@@ -79,6 +79,16 @@ class GlContext {
   bool hardware_ = false;
 };
 
+/// The shared objects that creating a GlContext loaded (the EGL vendor library's driver, e.g.
+/// Mesa's dri/swrast_dri.so) and that are kept loaded until the process exits: without that the
+/// last context's eglTerminate unloads the driver, the next context loads it again, and
+/// LeakSanitizer reports the driver's still-referenced allocations as leaks from an unknown
+/// module (docs/RELIABILITY.md). Full paths, in the order they were pinned.
+std::vector<std::string> pinned_gl_libraries();
+
+/// True when a shared object with this path is loaded in the process now.
+bool library_loaded(const std::string& path);
+
 /// Compiles and links a program from embedded GLSL files (shader_sources.h); the stage is taken
 /// from each name's extension (.comp, .vert, .geom, .frag). `defines` is inserted after the
 /// #version line. Returns the program name. Throws GpuError naming the file with the driver's

@@ -109,6 +109,25 @@ void compare_with_cpu(int n, SpringModel model, int iterations, GpuBackend backe
 
 }  // namespace
 
+// First in the file: ctest runs each case in a process of its own, so here the context below is
+// the process's only one and its eglTerminate is the last; without the pin it would unload the
+// driver (Mesa's dri/swrast_dri.so) again.
+TEST_CASE("the driver a context loads stays loaded after the last context is gone", "[gpu]") {
+  std::string renderer;
+  {
+    const GlContext gl;
+    renderer = gl.renderer();
+  }
+  const std::vector<std::string> pinned = pinned_gl_libraries();
+  INFO("renderer " << renderer << ", " << pinned.size() << " pinned libraries");
+  if (renderer.find("llvmpipe") != std::string::npos) CHECK(!pinned.empty());
+  for (const std::string& path : pinned) {
+    INFO(path);
+    CHECK(library_loaded(path));
+  }
+  CHECK(!library_loaded("/nonexistent/libfascicle_not_loaded.so"));
+}
+
 TEST_CASE("headless context reports the renderer and an OpenGL 4.3+ core version", "[gpu]") {
   GlContext& gl = context();
   INFO("renderer " << gl.renderer() << ", version " << gl.version() << ", platform " << gl.platform());
