@@ -47,8 +47,11 @@ demo: build
 # -Wno-maybe-uninitialized: with -fsanitize=address g++ 12 reports false "may be used
 # uninitialized" inside CGAL's headers (Point_inside_vertical_ray_cast.h), fatal under -Werror.
 SANITIZE_FLAGS ?= -O1 -g1 -DNDEBUG
+# SANITIZE_DEADLINE (seconds since the epoch, default 0 = none): programs not started by then
+# are listed as not run (.ci/run passes its time budget).
+SANITIZE_DEADLINE ?= 0
 test-sanitize: deps sanitize-build
-	@bash scripts/run-sanitized-tests.sh $(SANITIZE_BUILD) $(JOBS)
+	@bash scripts/run-sanitized-tests.sh $(SANITIZE_BUILD) $(JOBS) 3600 $(SANITIZE_DEADLINE)
 
 # The build of test-sanitize alone (to build at a low priority while doing something else).
 sanitize-build:
