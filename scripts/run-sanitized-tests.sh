@@ -28,6 +28,9 @@ fi
 # fits the slower sanitized program; `make test` runs all 47.
 export FASCICLE_STRESS_STRIDE=${FASCICLE_STRESS_STRIDE:-6}
 export FASCICLE_STRESS_TIME_LIMIT=${FASCICLE_STRESS_TIME_LIMIT:-600}
+# Time budgets the tests give the program (wrap seconds, time limits) times 4: ASan at -O1 makes
+# the CGAL-heavy stages several times slower (tests/test_common.h, time_scale).
+export FASCICLE_TEST_TIME_SCALE=${FASCICLE_TEST_TIME_SCALE:-4}
 export logs limit deadline
 first="repair_test reliability_stress_test app_cli_test reliability_spawn_test repair_corpus_test shaders_gpu_test
        fibres_decompose_test reliability_limits_test fibres_untangle_test springs_solver_test"

@@ -40,8 +40,11 @@ void check_repair(const std::string& file, bool must_succeed) {
   test::TempDir dir;
   const std::string out = dir.file("out.off"), report = dir.file("report.json"), err = dir.file("stderr.txt");
   const Stamp before = stamp(file);
-  const int code = test::run_command("'" + test::program() + "' --quiet --time-limit 150 repair '" + file + "' -o '" +
-                                     out + "' --report '" + report + "' 2>'" + err + "'");
+  // Time budgets scaled for slow (sanitized) builds: test::time_scale().
+  const std::string limits = " --time-limit " + std::to_string(static_cast<int>(150 * test::time_scale())) +
+                             " repair --wrap-seconds " + std::to_string(static_cast<int>(40 * test::time_scale()));
+  const int code = test::run_command("'" + test::program() + "' --quiet" + limits + " '" + file + "' -o '" + out +
+                                     "' --report '" + report + "' 2>'" + err + "'");
   CHECK(stamp(file) == before);  // the input is never touched
   for (const auto& entry : fs::directory_iterator(dir.path()))  // no temporary file left behind
     CHECK(entry.path().filename().string().find(".tmp.") == std::string::npos);

@@ -64,6 +64,14 @@ inline std::vector<std::string> corpus_files(const std::string& sub, const std::
 }
 
 /// Runs a shell command, returns its exit status (0..255), output discarded unless `log` given.
+/// Factor for the time budgets a test gives the program (FASCICLE_TEST_TIME_SCALE, default 1):
+/// scripts/run-sanitized-tests.sh sets it, where ASan makes every run several times slower.
+inline double time_scale() {
+  const char* value = std::getenv("FASCICLE_TEST_TIME_SCALE");
+  const double scale = value ? std::atof(value) : 1.0;
+  return scale >= 1.0 ? scale : 1.0;
+}
+
 inline int run_command(const std::string& command) {
   const int status = std::system(command.c_str());
   if (status == -1) return -1;
