@@ -91,8 +91,8 @@ struct DecomposeOptions {
   /// [contact_depth_min, contact_depth]), in local spacings, (0, contact_depth] (default 0.3 =
   /// contact_depth: always contact_depth; the second try of a failed decomposition uses 0.05,
   /// retry_alternative: a deep target for a point a hair outside can push it past its
-  /// neighbours and fold cells, LHDL gluteus maximus 29 folded cells before the untangling with
-  /// 0.3, 11 with 0.05).
+  /// neighbours and fold cells: LHDL gluteus maximus with an even perimeter, 24 folded cells
+  /// before the untangling with 0.3, 11 with 0.05).
   double contact_depth_min = 0.3;
   /// Unfold the cells the settle leaves inverted (step 7, fibres/untangle_lattice.h) (default true).
   bool untangle_cells = true;
