@@ -129,11 +129,22 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--corner-twist", o.placement.corner_twist_deg,
                   "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
       ->capture_default_str();
+  cmd->add_option("--even-perimeter", o.placement.even_perimeter,
+                  "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
+                  "sphere map's azimuths (false)")
+      ->capture_default_str();
   cmd->add_option("--cast-rounds", o.cast_rounds,
                   "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
       ->capture_default_str();
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
+      ->capture_default_str();
+  cmd->add_option("--retry", o.retry_alternative,
+                  "When the fibres fail the check, decompose once more with the alternative placement (even "
+                  "perimeter and shallow contact switched) and keep the better result")
+      ->capture_default_str();
+  cmd->add_option("--contact-depth-min", o.contact_depth_min,
+                  "Depth (local spacings) of the containment target of a point only just outside the muscle")
       ->capture_default_str();
   cmd->add_option("--contact-rounds", o.contact_rounds,
                   "Containment rounds: points the settle leaves outside are fixed just inside and the settle rerun")

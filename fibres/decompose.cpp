@@ -128,6 +128,48 @@ bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice&
   return true;
 }
 
+// Affine fit c + A (g - g_mean) of the inner points of layer k over the index grid g = (i, j):
+// A (3 x 2; its columns are the layer's r and s directions), c the layer's centroid.
+struct LayerFit {
+  Vec3 centre = Vec3::Zero();
+  Eigen::Matrix<double, 3, 2> map = Eigen::Matrix<double, 3, 2>::Zero();
+  Vec3 normal() const { return map.col(0).cross(map.col(1)); }
+};
+LayerFit layer_fit(const springs::SpringSystem& system, const springs::Lattice& lattice, int k) {
+  auto at = [&](int i, int j) { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
+  LayerFit fit;
+  int count = 0;
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i) fit.centre += at(i, j), ++count;
+  fit.centre /= std::max(count, 1);
+  const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+  Eigen::Matrix<double, 3, 2> cross = Eigen::Matrix<double, 3, 2>::Zero();
+  Eigen::Matrix2d gram = Eigen::Matrix2d::Zero();
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i) {
+      const Eigen::Vector2d g = Eigen::Vector2d(i, j) - g_mean;
+      cross += (at(i, j) - fit.centre) * g.transpose();
+      gram += g * g.transpose();
+    }
+  if (gram.determinant() > 0.0) fit.map = cross * gram.inverse();
+  return fit;
+}
+
+}  // namespace
+
+int lattice_handedness(const springs::SpringSystem& system, const springs::Lattice& lattice) {
+  if (lattice.nz < 3) return 0;
+  std::vector<LayerFit> fits;
+  for (int k = 0; k < lattice.nz; ++k) fits.push_back(layer_fit(system, lattice, k));
+  double total = 0.0;
+  for (int k = 1; k + 1 < lattice.nz; ++k)
+    total += fits[static_cast<std::size_t>(k)].normal().dot(fits[static_cast<std::size_t>(k + 1)].centre -
+                                                            fits[static_cast<std::size_t>(k - 1)].centre);
+  return total > 0.0 ? 1 : total < 0.0 ? -1 : 0;
+}
+
+namespace {
+
 // The fibre ends of each attachment face, rebuilt under the layer of points next to it: that
 // layer (its inner points) is shrunk towards its centroid by a factor lambda and cast onto the
 // surface along the end axis (from the second layer's centroid through the first's). Seen along
@@ -137,6 +179,11 @@ bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice&
 // copy would carry the fold into the fibre ends, which the untangling must keep near their cast
 // places and so could never open: the face is then cast from the layer's best affine fit over the
 // template's index grid instead (a regular grid of parallelograms, unfolded by construction).
+// A face must also turn the lattice's way (lattice_handedness()): a layer, or fit, that is
+// mirrored seen along the cast axis (a layer turned over as a whole next to a narrow end) would
+// give a mirrored face and turn every cell of the end layer over, which no untangling with the
+// ends held can open; the fit of the nearest layer further in that turns the right way is cast
+// instead.
 // lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
 // point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
 // it), the axis from the layer's centroid to the area's centre is tried; the ends stay where they
@@ -145,6 +192,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
                           const Attachments& areas, double radius) {
   nlohmann::json out = nlohmann::json::array();
   const double reach = 4.0 * (bounding_box(muscle.positions).diagonal() + 1e-300);
+  const int hand = lattice_handedness(system, lattice);
   for (const auto& [k_end, k1, k2, area] :
        {std::tuple<int, int, int, const AttachmentArea*>{0, 1, 2, &areas.origin},
         std::tuple<int, int, int, const AttachmentArea*>{lattice.nz - 1, lattice.nz - 2, lattice.nz - 3, &areas.insertion}}) {
@@ -163,24 +211,27 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     std::vector<Vec3> offsets;
     for (int j = 1; j + 1 < lattice.ny; ++j)
       for (int i = 1; i + 1 < lattice.nx; ++i) offsets.push_back(at(i, j, k1) - c1);
-    const bool folded = !layer_unfolded(system, lattice, k1, layer_axis);
+    // Direction of growing k at this face: a face turns the lattice's way when its (r, s)
+    // normal points along it times the handedness.
+    const Vec3 k_direction = k_end == 0 ? Vec3(-layer_axis) : layer_axis;
+    const auto turns_right = [&](const Eigen::Matrix<double, 3, 2>& map) {
+      const Vec3 normal = map.col(0).cross(map.col(1));
+      return hand == 0 || normal.dot(k_direction) * hand > 1e-6 * map.squaredNorm();
+    };
+    const LayerFit own = layer_fit(system, lattice, k1);
+    const bool folded = !layer_unfolded(system, lattice, k1, layer_axis) || !turns_right(own.map);
+    int fit_layer = -1;
     if (folded) {
-      const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
-      Eigen::Matrix<double, 3, 2> cross = Eigen::Matrix<double, 3, 2>::Zero();
-      Eigen::Matrix2d gram = Eigen::Matrix2d::Zero();
-      std::size_t n = 0;
-      for (int j = 1; j + 1 < lattice.ny; ++j)
-        for (int i = 1; i + 1 < lattice.nx; ++i) {
-          const Eigen::Vector2d g = Eigen::Vector2d(i, j) - g_mean;
-          cross += offsets[n++] * g.transpose();
-          gram += g * g.transpose();
-        }
-      const Eigen::Matrix<double, 3, 2> fit = cross * gram.inverse();
-      // A degenerate fit (the layer collapsed onto a line) is no better than the layer.
-      if (fit.col(0).cross(fit.col(1)).norm() > 1e-6 * fit.squaredNorm()) {
-        n = 0;
+      const int step = k_end == 0 ? 1 : -1;
+      for (int k = k1; k > 0 && k + 1 < lattice.nz && fit_layer < 0; k += step) {
+        const LayerFit fit = k == k1 ? own : layer_fit(system, lattice, k);
+        // A degenerate fit (the layer collapsed onto a line) is no better than the layer.
+        if (!(fit.normal().norm() > 1e-6 * fit.map.squaredNorm()) || !turns_right(fit.map)) continue;
+        fit_layer = k;
+        const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+        std::size_t n = 0;
         for (int j = 1; j + 1 < lattice.ny; ++j)
-          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit * (Eigen::Vector2d(i, j) - g_mean);
+          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit.map * (Eigen::Vector2d(i, j) - g_mean);
       }
     }
     Vec3 area_centre = Vec3::Zero();
@@ -225,7 +276,8 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     out.push_back({{"face", k_end == 0 ? "origin" : "insertion"},
                    {"cast", placed},
                    {"shrink", placed ? lambda : 0.0},
-                   {"from", folded ? "affine_fit" : "layer"},
+                   {"from", folded ? (fit_layer == k1 ? "affine_fit" : fit_layer < 0 ? "layer_folded" : "affine_fit_deeper") : "layer"},
+                   {"fit_layer", fit_layer},
                    {"axis", used_axis == 0 ? "layer" : "area"}});
   }
   return out;
@@ -283,6 +335,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
     throw OptionError("contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
+  if (!(contact_depth_min > 0.0 && contact_depth_min <= contact_depth))
+    throw OptionError("contact_depth_min: must be in (0, contact_depth], got " + std::to_string(contact_depth_min));
   if (smooth_steps < 0 || smooth_steps > 100'000)
     throw OptionError("smooth: must be in 0..100000 steps, got " + std::to_string(smooth_steps));
   if (!(smooth_weight > 0.0 && smooth_weight <= 1.0))
@@ -302,6 +356,7 @@ nlohmann::json DecomposeReport::to_json() const {
   j["containment"] = containment;
   j["untangle"] = untangle;
   j["smoothing"] = smoothing;
+  if (!retry.is_null()) j["retry"] = retry;
   j["quality"] = quality.to_json();
   j["renderer"] = renderer;
   j["seconds"] = {{"repair", repair_seconds},   {"sphere", sphere_seconds}, {"placement", placement_seconds},
@@ -321,9 +376,10 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
   return out;
 }
 
-Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
-                                 const DecomposeOptions& options) {
-  options.validate();
+namespace {
+
+// Steps 2-9 once, with the given options.
+Decomposition decompose_once(const TriangleMesh& muscle, const Landmarks& landmarks, const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -428,7 +484,13 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   // A point just inside the surface for the outside point q: the closest surface point moved
   // `contact_depth` local spacings inwards (halved until it is inside).
   auto contact_target = [&](int q, const std::vector<double>& spacing) -> Vec3 {
-    return lattice_contact_point(system, lattice.point_count(), query, q, options.contact_depth, spacing);
+    double depth = options.contact_depth;
+    if (options.contact_depth_min < options.contact_depth && spacing[static_cast<std::size_t>(q)] > 0.0) {
+      const Vec3& p = system.positions[static_cast<std::size_t>(q)];
+      const double outside_by = (query.closest_point(p).position - p).norm() / spacing[static_cast<std::size_t>(q)];
+      depth = std::clamp(3.0 * outside_by, options.contact_depth_min, options.contact_depth);
+    }
+    return lattice_contact_point(system, lattice.point_count(), query, q, depth, spacing);
   };
   auto settle_with_contact = [&](const springs::SettleOptions& settle_options) {
     int soft = 0, local_rounds = 0;
@@ -552,6 +614,50 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   report.status = report.quality.pass ? "ok" : "failed";
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";
   report.seconds = since(start);
+  return out;
+}
+
+// Whether result a is better than b: passing first, then fewer failed criteria, fewer inverted
+// cells, a larger inside fraction, a lower coverage p95.
+bool better(const CheckReport& a, const CheckReport& b) {
+  if (a.pass != b.pass) return a.pass;
+  if (a.failed.size() != b.failed.size()) return a.failed.size() < b.failed.size();
+  if (a.inverted_cells != b.inverted_cells) return a.inverted_cells < b.inverted_cells;
+  if (a.inside_fraction != b.inside_fraction) return a.inside_fraction > b.inside_fraction;
+  return a.coverage.p95 < b.coverage.p95;
+}
+
+}  // namespace
+
+DecomposeOptions alternative_placement(const DecomposeOptions& options) {
+  DecomposeOptions alternative = options;
+  alternative.placement.even_perimeter = !options.placement.even_perimeter;
+  alternative.contact_depth_min =
+      options.contact_depth_min < options.contact_depth ? options.contact_depth : std::min(0.05, options.contact_depth);
+  alternative.retry_alternative = false;
+  return alternative;
+}
+
+Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                 const DecomposeOptions& options) {
+  options.validate();
+  const auto start = Clock::now();
+  Decomposition out = decompose_once(muscle, landmarks, options);
+  if (options.retry_alternative && !out.report.quality.pass) {
+    const DecomposeOptions alternative = alternative_placement(options);
+    Decomposition second = decompose_once(muscle, landmarks, alternative);
+    const bool keep_second = better(second.report.quality, out.report.quality);
+    nlohmann::json retry = {{"even_perimeter", alternative.placement.even_perimeter},
+                            {"contact_depth_min", alternative.contact_depth_min},
+                            {"first_status", out.report.status},
+                            {"first_inverted_cells", out.report.quality.inverted_cells},
+                            {"second_status", second.report.status},
+                            {"second_inverted_cells", second.report.quality.inverted_cells},
+                            {"kept", keep_second ? "second" : "first"}};
+    if (keep_second) out = std::move(second);
+    out.report.retry = std::move(retry);
+  }
+  out.report.seconds = since(start);
   return out;
 }
 

@@ -31,6 +31,8 @@
 ///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances.
+/// A result that fails the check is made once more with alternative_placement() and the better
+/// of the two kept (`retry_alternative`).
 #include "fibres/fibre_check.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
@@ -85,11 +87,24 @@ struct DecomposeOptions {
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
                                 ///< spacings, (0, 1) (default 0.3)
+  /// A point only just outside goes only this deep (three times its distance outside, clamped to
+  /// [contact_depth_min, contact_depth]), in local spacings, (0, contact_depth] (default 0.3 =
+  /// contact_depth: always contact_depth; the second try of a failed decomposition uses 0.05,
+  /// retry_alternative: a deep target for a point a hair outside can push it past its
+  /// neighbours and fold cells: LHDL gluteus maximus with an even perimeter, 24 folded cells
+  /// before the untangling with 0.3, 11 with 0.05).
+  double contact_depth_min = 0.3;
   /// Unfold the cells the settle leaves inverted (step 7, fibres/untangle_lattice.h) (default true).
   bool untangle_cells = true;
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
   /// fibres/untangle_lattice.h).
   LatticeUntangleOptions untangle;
+  /// When the fibres fail the check, decompose once more with alternative_placement() and keep
+  /// the better of the two results (passing first, then fewer failed criteria, fewer inverted
+  /// cells, larger inside fraction, lower coverage p95) (default true: the folds a placement
+  /// leaves depend on its free choices, and a muscle that folds with one often does not with
+  /// the other; docs/BENCHMARKS.md, "Decompose").
+  bool retry_alternative = true;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
@@ -110,6 +125,7 @@ struct DecomposeReport {
   std::string status;       ///< "ok" or "failed" (the quality check failed)
   std::string failure;      ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
+  nlohmann::json retry;     ///< the second try with the alternative placement, when there was one
   CheckReport quality;
   std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
   double repair_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,
@@ -125,6 +141,18 @@ struct Decomposition {
   DecomposeReport report;
 };
 
+/// The options of the second try of a failed decomposition: `options` with the placement's
+/// even_perimeter switched, contact_depth_min switched between 0.05 (or contact_depth, if
+/// smaller) and contact_depth (shallow contact targets on or off), and no further retry.
+DecomposeOptions alternative_placement(const DecomposeOptions& options);
+
+/// Handedness of a settled lattice: +1 or -1 as its layers' (r, s) normals (the normals of their
+/// best affine fits over the index grid, inner points) point along or against the direction of
+/// growing t (from the layer before to the layer after), summed over the inner layers; 0 for a
+/// lattice of fewer than three layers or a sum of 0. The fibre ends are cast so that their faces
+/// turn this way (step 6).
+int lattice_handedness(const springs::SpringSystem& system, const springs::Lattice& lattice);
+
 /// Decomposes the raw muscle `soup` (any units) into fibres. Method: see the file comment.
 /// The result's report says "failed" when the final check fails (the fibres are still returned
 /// for inspection; the command line then writes no fibre file). Throws TopologyError
@@ -133,7 +161,9 @@ struct Decomposition {
 /// bijection or the settle diverges, Error(gpu) for GPU failures.
 Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options = {});
 
-/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-8.
+/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; when the result
+/// fails the check and options.retry_alternative is set, once more with alternative_placement(),
+/// keeping the better result (its report then has "retry").
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options = {});
 

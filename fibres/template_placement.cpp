@@ -194,6 +194,18 @@ Vec3 template_pole_vector(const Vec3& index_coords) {
 // Polar angle of the edge of the origin face (t = 0) of the unit index box at azimuth phi.
 double face_edge(double phi) { return std::atan(1.0 / std::max(std::abs(std::cos(phi)), std::abs(std::sin(phi)))); }
 
+// Share of the perimeter of the square [-1, 1]^2, counted anticlockwise from its corner
+// (-1, -1), at the point where the ray from its centre at azimuth phi meets it.
+double square_perimeter_share(double phi) {
+  const double c = std::cos(phi), s = std::sin(phi);
+  const double m = std::max(std::abs(c), std::abs(s));
+  const double x = c / m, y = s / m;
+  double share;
+  if (std::abs(s) >= std::abs(c)) share = s < 0.0 ? 0.125 * (x + 1.0) : 0.5 + 0.125 * (1.0 - x);
+  else share = c > 0.0 ? 0.25 + 0.125 * (y + 1.0) : 0.75 + 0.125 * (1.0 - y);
+  return std::clamp(share, 0.0, 1.0);
+}
+
 Vec3 index_coords(const springs::Lattice& lattice, int q) {
   const int i = q % lattice.nx;
   const int j = (q / lattice.nx) % lattice.ny;
@@ -437,6 +449,66 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     report.twist_deg = twist_at(0.0) * 180.0 / kPi;
     report.twist_end_deg = twist_at(1.0) * 180.0 / kPi;
 
+    // Even perimeter: around each cross-section the template's surface points go to the muscle's
+    // azimuths at the same share of the perimeter (surface area by azimuth, in kRingLevels
+    // levels along the band), counted from a corner of the template's square cross-section
+    // (azimuth -135 degrees from its r axis, turned by the twist; on the template, the share of
+    // the square's perimeter where the ray from its centre at that azimuth meets it, which
+    // spaces its surface points evenly, the lattice being regular). Azimuth alone crowds the
+    // lattice's corners (where the square's sides subtend the least angle) into the thin edges of
+    // a flat muscle, which the sphere map compresses: the corner cells fold. The map of each
+    // level is monotone and fixes the corner, so is every blend of two levels: the
+    // correspondence stays a homeomorphism.
+    constexpr int kRingLevels = 8, kRingBins = 48;
+    const double ring_start = -0.75 * kPi;
+    const auto ring_share = [&](double phi, double turn) {
+      const double x = (phi - turn - ring_start) / (2.0 * kPi);
+      return x - std::floor(x);
+    };
+    std::vector<Cumulative> muscle_ring(kRingLevels, Cumulative(kRingBins));
+    if (options.even_perimeter) {
+      // Muscle area by level and azimuth bin, smoothed over neighbouring bins and levels (a
+      // level of a coarse mesh has few triangles).
+      std::vector<std::vector<double>> mass(kRingLevels, std::vector<double>(kRingBins, 0.0));
+      for (const Triangle& t : muscle.triangles) {
+        const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
+        const double phi = azimuth(c);
+        const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
+        const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
+        if (!(u >= 0.0 && u <= 1.0)) continue;
+        const int level = std::min(kRingLevels - 1, static_cast<int>(u * kRingLevels));
+        const int b = std::min(kRingBins - 1, static_cast<int>(ring_share(phi, twist_at(u)) * kRingBins));
+        mass[static_cast<std::size_t>(level)][static_cast<std::size_t>(b)] +=
+            0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]]).cross(muscle.positions[t[2]] - muscle.positions[t[0]]).norm();
+      }
+      for (int level = 0; level < kRingLevels; ++level) {
+        for (int b = 0; b < kRingBins; ++b) {
+          double m = 0.0;
+          for (int dl = -1; dl <= 1; ++dl) {
+            const int l = level + dl;
+            if (l < 0 || l >= kRingLevels) continue;
+            const auto& row = mass[static_cast<std::size_t>(l)];
+            const double w = dl == 0 ? 1.0 : 0.5;
+            m += w * (0.25 * row[static_cast<std::size_t>((b + kRingBins - 1) % kRingBins)] +
+                      0.5 * row[static_cast<std::size_t>(b)] + 0.25 * row[static_cast<std::size_t>((b + 1) % kRingBins)]);
+          }
+          muscle_ring[static_cast<std::size_t>(level)].add((b + 0.5) / kRingBins, m);
+        }
+        muscle_ring[static_cast<std::size_t>(level)].finish();
+      }
+    }
+    // Muscle azimuth of the template azimuth phi_t at band level u.
+    const auto muscle_azimuth = [&](double phi_t, double u) {
+      const double turn = twist_at(u);
+      if (!options.even_perimeter) return phi_t + turn;
+      const double share = square_perimeter_share(phi_t);
+      const double y = std::clamp(u * kRingLevels - 0.5, 0.0, static_cast<double>(kRingLevels - 1));
+      const auto l = std::min(static_cast<std::size_t>(y), static_cast<std::size_t>(kRingLevels - 2));
+      const double f = y - static_cast<double>(l);
+      const double x = (1.0 - f) * muscle_ring[l].inverse(share) + f * muscle_ring[l + 1].inverse(share);
+      return turn + ring_start + 2.0 * kPi * x;
+    };
+
     // Every surface point of the lattice: template sphere -> muscle pole frame -> muscle sphere.
     const int n = lattice.point_count();
     surface_points.clear();
@@ -451,17 +523,17 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       const int k = q / (lattice.nx * lattice.ny);
       double theta, phi;
       if (k == 0) {
-        phi = phi_t + twist_at(0.0);
+        phi = muscle_azimuth(phi_t, 0.0);
         const double rho = std::min(1.0, std::tan(theta_t) / std::tan(edge));
         theta = rho * so * origin_radius(phi);
       } else if (k == lattice.nz - 1) {
-        phi = phi_t + twist_at(1.0);
+        phi = muscle_azimuth(phi_t, 1.0);
         const double rho = std::min(1.0, std::tan(kPi - theta_t) / std::tan(edge));
         theta = kPi - rho * si * insertion_radius(phi);
       } else {
         const double ut = std::clamp((theta_t - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
         const double um = muscle_band.inverse(template_band.share(ut));
-        phi = phi_t + twist_at(um);
+        phi = muscle_azimuth(phi_t, um);
         const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
         theta = ro + um * (kPi - ri - ro);
       }

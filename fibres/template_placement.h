@@ -15,7 +15,9 @@
 /// centre to the south pole, exactly; the template's frame is a rotation. In the pole frames a
 /// point has polar angle theta and azimuth phi; the correspondence keeps phi (up to a twist that
 /// turns the template's r axis to `corner_twist_deg` from the muscle's second principal axis, so
-/// that the corners of the lattice's cross-section lie on the muscle's broad axis) and maps theta by a
+/// that the corners of the lattice's cross-section lie on the muscle's broad axis; with
+/// `even_perimeter`, reparametrised in each cross-section so that equal shares of the template's
+/// square perimeter go to equal shares of the muscle's) and maps theta by a
 /// function that is monotone in theta for every phi, so the whole correspondence is a
 /// homeomorphism of the sphere (neighbouring template points stay neighbours, nothing folds):
 ///  - the origin face (theta below its edge Theta(phi)) goes linearly in tan(theta) onto the
@@ -75,6 +77,16 @@ struct PlacementOptions {
   /// volume farther than 2 ideal spacings from every fibre, coverage p95 3.8-4.0; with 45:
   /// 1.6-1.7; docs/BENCHMARKS.md, "Decompose").
   double corner_twist_deg = 45.0;
+  /// Around each cross-section, template points go to the muscle azimuth at the same share of
+  /// the perimeter (surface area by azimuth), counted from a lattice corner, when true; to the
+  /// same azimuth (plus the twist) when false (default false; the second try of a failed
+  /// decomposition switches it, DecomposeOptions::retry_alternative. The sphere map compresses
+  /// the thin edges of a flat muscle, and by azimuth alone the lattice corners crowd into them;
+  /// even shares spread the ring evenly (ring spacing max/min 2.1 against 3.5 on a 5 : 1 flat
+  /// capsule), but as the first choice (with contact_depth_min 0.05) it passed 34 of the 38
+  /// corpus muscles the other passes, and 2 others: docs/BENCHMARKS.md, "Decompose",
+  /// 2026-11-21 21:24-21:30).
+  bool even_perimeter = false;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };

@@ -21,6 +21,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
                                      " --jobs 2 --keep-failed 2>/dev/null");
   CHECK((code == 0 || code == 19));
   int reports = 0, passed = 0, unfolded = 0, covered = 0;
+  long inverted = 0;
   std::set<std::string> refused;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir.path())) {
     const std::string path = entry.path().string();
@@ -43,15 +44,19 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     CHECK(q["attachment"]["insertion_max"].get<double>() <= 0.02);
     passed += r["status"] == "ok";
     unfolded += q["inverted_cells"].get<long>() == 0;
+    inverted += q["inverted_cells"].get<long>();
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Measured on 2026-11-21 19:38 UTC (docs/BENCHMARKS.md,
-  // "Decompose"): 38 of 47 pass every criterion, 38 have no inverted cell, 47 have coverage p95
-  // <= 2 (with the lattice corners on the broad axis and the ends cast from an unfolded grid);
-  // at 16:34 the figures were 20, 30 and 28. One below each, for a different processor's rounding.
-  CHECK(passed >= 37);
-  CHECK(unfolded >= 37);
-  CHECK(covered >= 46);
+  // Floors, not the goal (every muscle). Measured on 2026-11-21 21:15-21:22 UTC (docs/BENCHMARKS.md,
+  // "Decompose"): 40 of 47 pass every criterion, 41 have no inverted cell, 46 have coverage p95
+  // <= 2, 714 inverted cells in all (ends cast so that they turn the lattice's way, a second try
+  // with the alternative placement for a muscle that fails); at 19:38 the figures were 38, 38, 47
+  // and 979, at 16:34 20, 30, 28. One below each (the total: about 5 % above), for a different
+  // processor's rounding.
+  CHECK(passed >= 39);
+  CHECK(unfolded >= 40);
+  CHECK(covered >= 45);
+  CHECK(inverted <= 750);
 }

@@ -151,6 +151,111 @@ TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   CHECK(b.coverage.p95 > a.coverage.p95);
 }
 
+namespace {
+
+// Largest over smallest distance between neighbouring surface points round the middle ring of
+// the placed lattice.
+double ring_spacing_ratio(const springs::Lattice& lattice, const Placement& placement) {
+  const int k = lattice.nz / 2;
+  std::vector<Vec3> ring;
+  auto at = [&](int i, int j) { return placement.points[static_cast<std::size_t>(lattice.index(i, j, k))].position; };
+  for (int i = 0; i + 1 < lattice.nx; ++i) ring.push_back(at(i, 0));
+  for (int j = 0; j + 1 < lattice.ny; ++j) ring.push_back(at(lattice.nx - 1, j));
+  for (int i = lattice.nx - 1; i > 0; --i) ring.push_back(at(i, lattice.ny - 1));
+  for (int j = lattice.ny - 1; j > 0; --j) ring.push_back(at(0, j));
+  double lo = 1e300, hi = 0.0;
+  for (std::size_t n = 0; n < ring.size(); ++n) {
+    const double d = (ring[(n + 1) % ring.size()] - ring[n]).norm();
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+  }
+  return hi / lo;
+}
+
+}  // namespace
+
+TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[fibres][placement]") {
+  // The flat capsule of the case above (semi-axes 3 and 0.6). By the sphere map's azimuths the
+  // lattice corners crowd into the thin edges (their sides subtend the least angle there, and
+  // the map compresses the edges); by even shares of the perimeter they do not.
+  TriangleMesh mesh = capsule();
+  for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  const Attachments areas = automatic_attachments(mesh);
+  springs::LatticeOptions lo;
+  lo.nr = 12;
+  lo.ns = 12;
+  lo.resolution = 15;
+  const springs::Lattice lattice = springs::build_lattice(lo);
+  PlacementOptions even;
+  even.even_perimeter = true;
+  PlacementOptions by_azimuth;
+  by_azimuth.even_perimeter = false;
+  const double even_ratio = ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, even));
+  const double azimuth_ratio =
+      ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, by_azimuth));
+  CAPTURE(even_ratio, azimuth_ratio);
+  CHECK(even_ratio < 0.7 * azimuth_ratio);
+  CHECK(even_ratio < 3.0);
+}
+
+TEST_CASE("a decomposition that fails the check is tried again with the alternative placement", "[fibres][decompose]") {
+  DecomposeOptions options;
+  const DecomposeOptions alternative = alternative_placement(options);
+  CHECK(alternative.placement.even_perimeter != options.placement.even_perimeter);
+  CHECK(alternative.contact_depth_min != options.contact_depth_min);
+  CHECK_FALSE(alternative.retry_alternative);
+  CHECK(alternative_placement(alternative).placement.even_perimeter == options.placement.even_perimeter);
+  CHECK(alternative_placement(alternative).contact_depth_min == options.contact_depth_min);
+  CHECK_NOTHROW(alternative.validate());
+  // A capsule passes at once: no second try.
+  const TriangleMesh mesh = capsule();
+  const Decomposition once = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(once.report.quality.pass);
+  CHECK(once.report.retry.is_null());
+  CHECK_FALSE(once.report.to_json().contains("retry"));
+  // A coverage limit no lattice meets: both tries fail, the report says which result it kept
+  // (the better one).
+  options.check.max_coverage_p95 = 1e-6;
+  const Decomposition twice = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK_FALSE(twice.report.quality.pass);
+  REQUIRE(twice.report.to_json().contains("retry"));
+  const nlohmann::json& retry = twice.report.retry;
+  CHECK(retry["first_status"] == "failed");
+  CHECK(retry["second_status"] == "failed");
+  CHECK((retry["kept"] == "first" || retry["kept"] == "second"));
+  CHECK(twice.report.placement.is_object());
+  options.retry_alternative = false;
+  const Decomposition no_retry = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(no_retry.report.retry.is_null());
+  CHECK(no_retry.report.quality.coverage.p95 == Approx(once.report.quality.coverage.p95));
+}
+
+TEST_CASE("a lattice's handedness follows its layers' turn along the fibres", "[fibres][decompose]") {
+  springs::LatticeOptions lo;
+  lo.nr = 6;
+  lo.ns = 5;
+  lo.resolution = 7;
+  const springs::Lattice lattice = springs::build_lattice(lo);
+  springs::SpringSystem system = lattice.system;
+  const int hand = lattice_handedness(system, lattice);
+  CHECK(hand != 0);
+  // A mirror image turns the other way; a rotation does not.
+  for (Vec3& p : system.positions) p.x() = -p.x();
+  CHECK(lattice_handedness(system, lattice) == -hand);
+  for (Vec3& p : system.positions) p = Vec3(p.y(), -p.x(), p.z());  // the mirror image turned: still a mirror
+  CHECK(lattice_handedness(system, lattice) == -hand);
+  system.positions = lattice.system.positions;
+  for (Vec3& p : system.positions) p = Vec3(-p.y(), p.x(), p.z());
+  CHECK(lattice_handedness(system, lattice) == hand);
+  springs::LatticeOptions thin = lo;
+  thin.resolution = 2;
+  const springs::Lattice two = springs::build_lattice(thin);
+  CHECK(lattice_handedness(two.system, two) == 0);
+}
+
 TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decompose]") {
   const TriangleMesh mesh = capsule();
   DecomposeOptions zero;
@@ -175,6 +280,11 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   DecomposeOptions twist;
   twist.placement.corner_twist_deg = 200.0;
   CHECK_THROWS_WITH(twist.validate(), Catch::Contains("corner_twist_deg"));
+  DecomposeOptions depth;
+  depth.contact_depth_min = 0.5;  // deeper than contact_depth
+  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));
+  depth.contact_depth_min = 0.0;
+  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));
   Landmarks same;
   same.origin = same.insertion = {Vec3(0, 0, 5.0), Vec3(0.1, 0, 5.0)};
   same.origin_source = same.insertion_source = "same.xyz";
@@ -197,6 +307,8 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --resolution 1 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --corner-twist 200 2>/dev/null") == 18);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --contact-depth-min 0.5 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + (dir.path() / "missing.off").string() + " -o " + out +
                           " 2>/dev/null") == 3);
