@@ -139,8 +139,8 @@ bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice&
 // template's index grid instead (a regular grid of parallelograms, unfolded by construction).
 // lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
 // point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
-// it), the axis from the layer's centroid to the area's centre is tried; the ends stay where they
-// were when neither fits.
+// it), the axis from the layer's centroid to the area's centre is tried, then the axis to the
+// area point nearest to that centroid; the ends stay where they were when none fits.
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
                           const Attachments& areas, double radius) {
   nlohmann::json out = nlohmann::json::array();
@@ -189,6 +189,17 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     std::vector<Vec3> axes{layer_axis};
     const Vec3 to_area = (area_centre - c1).normalized();
     if (!area->points.empty() && to_area.allFinite()) axes.push_back(to_area);
+    // The centroid of a broad or curved area (a strip of landmarks along a bone crest) can lie
+    // off the muscle, so that neither ray meets the area: last, the axis towards the area point
+    // nearest to the layer's centroid, whose ray from the centroid ends on that point when the
+    // segment between them stays inside the muscle.
+    if (!area->points.empty()) {
+      const SurfacePoint* nearest = &area->points.front();
+      for (const SurfacePoint& p : area->points)
+        if ((p.position - c1).squaredNorm() < (nearest->position - c1).squaredNorm()) nearest = &p;
+      const Vec3 to_nearest = (nearest->position - c1).normalized();
+      if (to_nearest.allFinite()) axes.push_back(to_nearest);
+    }
     double lambda = 1.0;
     bool placed = false;
     std::vector<Vec3> ends;
@@ -226,7 +237,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
                    {"cast", placed},
                    {"shrink", placed ? lambda : 0.0},
                    {"from", folded ? "affine_fit" : "layer"},
-                   {"axis", used_axis == 0 ? "layer" : "area"}});
+                   {"axis", used_axis == 0 ? "layer" : used_axis == 1 ? "area" : "nearest_area_point"}});
   }
   return out;
 }
@@ -287,6 +298,11 @@ void DecomposeOptions::validate() const {
     throw OptionError("smooth: must be in 0..100000 steps, got " + std::to_string(smooth_steps));
   if (!(smooth_weight > 0.0 && smooth_weight <= 1.0))
     throw OptionError("smooth-weight: must be in (0, 1], got " + std::to_string(smooth_weight));
+  if (landmark_twists_deg.size() > 16)
+    throw OptionError("landmark_twists_deg: at most 16 twists, got " + std::to_string(landmark_twists_deg.size()));
+  for (double twist : landmark_twists_deg)
+    if (!(twist >= -180.0 && twist <= 180.0))
+      throw OptionError("landmark_twists_deg: each twist must be in [-180, 180], got " + std::to_string(twist));
 }
 
 nlohmann::json DecomposeReport::to_json() const {
@@ -303,6 +319,8 @@ nlohmann::json DecomposeReport::to_json() const {
   j["untangle"] = untangle;
   j["smoothing"] = smoothing;
   j["quality"] = quality.to_json();
+  j["attempts"] = attempts;
+  j["kept_attempt"] = kept_attempt;
   j["renderer"] = renderer;
   j["seconds"] = {{"repair", repair_seconds},   {"sphere", sphere_seconds}, {"placement", placement_seconds},
                   {"settle", settle_seconds},   {"check", check_seconds},   {"total", seconds}};
@@ -321,9 +339,11 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
   return out;
 }
 
-Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
-                                 const DecomposeOptions& options) {
-  options.validate();
+namespace {
+
+// One whole decomposition of a repaired muscle (steps 2-8) with the options as given.
+Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -553,6 +573,60 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";
   report.seconds = since(start);
   return out;
+}
+
+nlohmann::json attempt_json(double twist, const DecomposeReport& r) {
+  const CheckReport& q = r.quality;
+  return {{"corner_twist_deg", twist},
+          {"status", r.status},
+          {"failed", q.failed},
+          {"inside_fraction", q.inside_fraction},
+          {"inverted_cells", q.inverted_cells},
+          {"coverage_p95", q.coverage.p95},
+          {"attachment_max", std::max(q.attachment.origin_max, q.attachment.insertion_max)},
+          {"seconds", r.seconds}};
+}
+
+// Whether check report `a` is better than `b`: it passes where `b` fails, or fails fewer
+// criteria. Nothing finer: a retry that fails the same criteria does not replace the result of
+// the twist the user asked for (its figures would trade one criterion against another).
+bool better(const CheckReport& a, const CheckReport& b) {
+  if (a.pass != b.pass) return a.pass;
+  return a.failed.size() < b.failed.size();
+}
+
+}  // namespace
+
+Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                 const DecomposeOptions& options) {
+  options.validate();
+  Decomposition best = decompose_attempt(muscle, landmarks, options);
+  nlohmann::json attempts = nlohmann::json::array({attempt_json(options.placement.corner_twist_deg, best.report)});
+  double seconds = best.report.seconds;
+  int kept = 0;
+  // Landmark areas put the placement's poles on the muscle's side, where the corner twist's
+  // reference is unreliable: other twists are tried while the check fails.
+  if (landmarks.given())
+    for (double twist : options.landmark_twists_deg) {
+      if (best.report.quality.pass) break;
+      DecomposeOptions retry = options;
+      retry.placement.corner_twist_deg = twist;
+      try {
+        Decomposition d = decompose_attempt(muscle, landmarks, retry);
+        attempts.push_back(attempt_json(twist, d.report));
+        seconds += d.report.seconds;
+        if (better(d.report.quality, best.report.quality)) {
+          best = std::move(d);
+          kept = static_cast<int>(attempts.size()) - 1;
+        }
+      } catch (const Error& e) {
+        attempts.push_back({{"corner_twist_deg", twist}, {"status", "error"}, {"error", e.what()}});
+      }
+    }
+  best.report.attempts = std::move(attempts);
+  best.report.kept_attempt = kept;
+  best.report.seconds = seconds;
+  return best;
 }
 
 }  // namespace fascicle

@@ -93,6 +93,19 @@ struct DecomposeOptions {
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
+  /// Corner twists (degrees, each in [-180, 180]) tried in turn, each a whole decomposition with
+  /// placement.corner_twist_deg replaced, when the attachment areas come from landmarks and the
+  /// decomposition with placement.corner_twist_deg fails the check; the first that passes is
+  /// kept, else the first of those failing the fewest criteria (so the asked-for twist's result
+  /// stays unless a retry fails fewer criteria). Default {0, 67.5, 22.5}: with the square cross-section the twist has a period of 90
+  /// degrees, and these split it in steps of 22.5 with 45. Why: with landmark areas the poles of
+  /// the placement lie on the muscle's side, where the twist's reference (the muscle's second
+  /// principal axis seen from each level) is unreliable, and coverage p95 swings with the twist
+  /// (LHDL gluteus maximus, parallel template: 2.34 at 45, 2.56 at 0, 2.97 at 22.5, 1.83 at 67.5;
+  /// iliacus: 3.02 at 45, 1.85 at 0; docs/BENCHMARKS.md, "Decompose"). Automatic areas never
+  /// retry: their poles are the muscle's ends, where 45 was measured on the whole corpus. Empty:
+  /// no retry.
+  std::vector<double> landmark_twists_deg = {0.0, 67.5, 22.5};
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -111,6 +124,10 @@ struct DecomposeReport {
   std::string failure;      ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
   CheckReport quality;
+  /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
+  /// seconds), in order, and which was kept (DecomposeOptions::landmark_twists_deg).
+  nlohmann::json attempts = nlohmann::json::array();
+  int kept_attempt = 0;     ///< index into `attempts` of the result returned
   std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
   double repair_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,
          check_seconds = 0, seconds = 0;
@@ -133,7 +150,10 @@ struct Decomposition {
 /// bijection or the settle diverges, Error(gpu) for GPU failures.
 Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options = {});
 
-/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-8.
+/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-8, retried with
+/// the corner twists of options.landmark_twists_deg when the areas come from landmarks and the
+/// check fails (the report's `attempts` lists every try). Throws as decompose(); an exception in
+/// a retry (not the first attempt) is recorded in `attempts` and the retry skipped.
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options = {});
 
