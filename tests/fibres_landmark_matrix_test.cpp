@@ -105,7 +105,14 @@ TEST_CASE("landmark twists: retried only with landmark areas, only while the che
   }
   CHECK(attempts[kept]["coverage_p95"].get<double>() == given.report.quality.coverage.p95);
 
+  // No twists to retry: one attempt, the default twist's.
+  options.landmark_twists_deg.clear();
+  const Decomposition single = decompose_repaired(mesh, landmarks, options);
+  CHECK(single.report.attempts.size() == 1);
+  CHECK(single.report.kept_attempt == 0);
+
   // A check that passes: no retry even with landmarks.
+  options.landmark_twists_deg = {0.0, 30.0};
   options.check = CheckOptions{};
   const Decomposition passing = decompose_repaired(mesh, landmarks, options);
   INFO(passing.report.attempts.dump());
@@ -151,17 +158,4 @@ TEST_CASE("landmark matrix: LHDL iliacus and gluteus maximus with their landmark
     passed += q.pass ? 1 : 0;
   }
   CHECK(passed >= 1);  // measured: 2 of 2
-}
-
-TEST_CASE("landmark matrix: without twists to retry there is one attempt, the default one",
-          "[fibres][decompose][corpus][slow]") {
-  FASCICLE_REQUIRE_DATA();
-  DecomposeOptions options;
-  options.landmark_twists_deg.clear();
-  const LandmarkRun run = run_lhdl("LHDL_R_M091_Iliacus", "LHDL_R_M091_Iliacus_smooth.365.vtk",
-                                   springs::TemplateKind::parallel, options);
-  INFO(run.report["attempts"].dump());
-  REQUIRE(run.report["attempts"].size() == 1);
-  CHECK(run.report["kept_attempt"] == 0);
-  CHECK(run.report["attempts"][0]["corner_twist_deg"].get<double>() == 45.0);
 }
