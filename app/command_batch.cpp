@@ -331,7 +331,8 @@ void add_batch_command(CLI::App& app) {
   cmd->add_flag("--keep-failed", args->keep_failed, "Write fibres even for muscles that fail the check");
   // Decompose options, passed through unchanged.
   for (const char* name : {"--template", "--fibres", "--resolution", "--model", "--solver", "--tolerance",
-                           "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest"}) {
+                           "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest", "--corner-twist",
+                           "--even-perimeter", "--retry"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {
@@ -342,6 +343,17 @@ void add_batch_command(CLI::App& app) {
     static std::vector<std::shared_ptr<std::string>> keep;
     keep.push_back(value);
   }
+  // --landmark-twists takes several values: forwarded after one flag.
+  auto twists = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("--landmark-twists", *twists, "Passed to decompose (--landmark-twists)")
+      ->expected(1, 16)
+      ->each([args](const std::string& v) {
+        if (std::find(args->forwarded.begin(), args->forwarded.end(), "--landmark-twists") == args->forwarded.end())
+          args->forwarded.push_back("--landmark-twists");
+        args->forwarded.push_back(v);
+      });
+  static std::vector<std::shared_ptr<std::vector<std::string>>> keep_twists;
+  keep_twists.push_back(twists);
   cmd->callback([args] { run_batch(*args); });
 }
 

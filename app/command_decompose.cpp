@@ -14,6 +14,8 @@
 #include <spdlog/spdlog.h>
 
 #include <memory>
+#include <string>
+#include <vector>
 
 namespace fascicle::app {
 
@@ -25,6 +27,7 @@ struct DecomposeArgs {
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
   int model = 6;
   bool keep_failed = false;
+  std::vector<std::string> landmark_twists;  // --landmark-twists: degrees, or "none"; empty: default
   DecomposeOptions options;
 };
 
@@ -36,6 +39,22 @@ void run_decompose(const DecomposeArgs& args) {
   options.sphere.method = sphere_method_from_string(args.sphere_method);
   options.backend = args.backend;
   options.rest = parse_rest_shape(args.rest);
+  if (!args.landmark_twists.empty()) {
+    options.landmark_twists_deg.clear();
+    if (!(args.landmark_twists.size() == 1 && args.landmark_twists[0] == "none"))
+      for (const std::string& v : args.landmark_twists) {
+        std::size_t used = 0;
+        double twist = 0.0;
+        try {
+          twist = std::stod(v, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != v.size())
+          throw OptionError("landmark_twists_deg: '" + v + "' is not a number of degrees (or give 'none' alone)");
+        options.landmark_twists_deg.push_back(twist);
+      }
+  }
   options.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
@@ -133,6 +152,10 @@ void add_decompose_command(CLI::App& app) {
                   "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
                   "sphere map's azimuths (false)")
       ->capture_default_str();
+  cmd->add_option("--landmark-twists", args->landmark_twists,
+                  "Corner twists (degrees) tried in turn when landmark areas fail the check with --corner-twist; the "
+                  "best result is kept; 'none': no retry (default 0 67.5 22.5)")
+      ->expected(1, 16);
   cmd->add_option("--cast-rounds", o.cast_rounds,
                   "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
       ->capture_default_str();

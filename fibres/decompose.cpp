@@ -186,8 +186,8 @@ namespace {
 // instead.
 // lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
 // point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
-// it), the axis from the layer's centroid to the area's centre is tried; the ends stay where they
-// were when neither fits.
+// it), the axis from the layer's centroid to the area's centre is tried, then the axis to the
+// area point nearest to that centroid; the ends stay where they were when none fits.
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
                           const Attachments& areas, double radius) {
   nlohmann::json out = nlohmann::json::array();
@@ -240,6 +240,17 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     std::vector<Vec3> axes{layer_axis};
     const Vec3 to_area = (area_centre - c1).normalized();
     if (!area->points.empty() && to_area.allFinite()) axes.push_back(to_area);
+    // The centroid of a broad or curved area (a strip of landmarks along a bone crest) can lie
+    // off the muscle, so that neither ray meets the area: last, the axis towards the area point
+    // nearest to the layer's centroid, whose ray from the centroid ends on that point when the
+    // segment between them stays inside the muscle.
+    if (!area->points.empty()) {
+      const SurfacePoint* nearest = &area->points.front();
+      for (const SurfacePoint& p : area->points)
+        if ((p.position - c1).squaredNorm() < (nearest->position - c1).squaredNorm()) nearest = &p;
+      const Vec3 to_nearest = (nearest->position - c1).normalized();
+      if (to_nearest.allFinite()) axes.push_back(to_nearest);
+    }
     double lambda = 1.0;
     bool placed = false;
     std::vector<Vec3> ends;
@@ -278,7 +289,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
                    {"shrink", placed ? lambda : 0.0},
                    {"from", folded ? (fit_layer == k1 ? "affine_fit" : fit_layer < 0 ? "layer_folded" : "affine_fit_deeper") : "layer"},
                    {"fit_layer", fit_layer},
-                   {"axis", used_axis == 0 ? "layer" : "area"}});
+                   {"axis", used_axis == 0 ? "layer" : used_axis == 1 ? "area" : "nearest_area_point"}});
   }
   return out;
 }
@@ -341,6 +352,11 @@ void DecomposeOptions::validate() const {
     throw OptionError("smooth: must be in 0..100000 steps, got " + std::to_string(smooth_steps));
   if (!(smooth_weight > 0.0 && smooth_weight <= 1.0))
     throw OptionError("smooth-weight: must be in (0, 1], got " + std::to_string(smooth_weight));
+  if (landmark_twists_deg.size() > 16)
+    throw OptionError("landmark_twists_deg: at most 16 twists, got " + std::to_string(landmark_twists_deg.size()));
+  for (double twist : landmark_twists_deg)
+    if (!(twist >= -180.0 && twist <= 180.0))
+      throw OptionError("landmark_twists_deg: each twist must be in [-180, 180], got " + std::to_string(twist));
 }
 
 nlohmann::json DecomposeReport::to_json() const {
@@ -356,8 +372,9 @@ nlohmann::json DecomposeReport::to_json() const {
   j["containment"] = containment;
   j["untangle"] = untangle;
   j["smoothing"] = smoothing;
-  if (!retry.is_null()) j["retry"] = retry;
   j["quality"] = quality.to_json();
+  j["attempts"] = attempts;
+  j["kept_attempt"] = kept_attempt;
   j["renderer"] = renderer;
   j["seconds"] = {{"repair", repair_seconds},   {"sphere", sphere_seconds}, {"placement", placement_seconds},
                   {"settle", settle_seconds},   {"check", check_seconds},   {"total", seconds}};
@@ -378,8 +395,9 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
 
 namespace {
 
-// Steps 2-9 once, with the given options.
-Decomposition decompose_once(const TriangleMesh& muscle, const Landmarks& landmarks, const DecomposeOptions& options) {
+// One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
+Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -617,14 +635,20 @@ Decomposition decompose_once(const TriangleMesh& muscle, const Landmarks& landma
   return out;
 }
 
-// Whether result a is better than b: passing first, then fewer failed criteria, fewer inverted
-// cells, a larger inside fraction, a lower coverage p95.
-bool better(const CheckReport& a, const CheckReport& b) {
-  if (a.pass != b.pass) return a.pass;
-  if (a.failed.size() != b.failed.size()) return a.failed.size() < b.failed.size();
-  if (a.inverted_cells != b.inverted_cells) return a.inverted_cells < b.inverted_cells;
-  if (a.inside_fraction != b.inside_fraction) return a.inside_fraction > b.inside_fraction;
-  return a.coverage.p95 < b.coverage.p95;
+// One entry of the report's `attempts`: what the attempt changed and how its check came out.
+nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& options, const DecomposeReport& r) {
+  const CheckReport& q = r.quality;
+  return {{"change", change},
+          {"corner_twist_deg", options.placement.corner_twist_deg},
+          {"even_perimeter", options.placement.even_perimeter},
+          {"contact_depth_min", options.contact_depth_min},
+          {"status", r.status},
+          {"failed", q.failed},
+          {"inside_fraction", q.inside_fraction},
+          {"inverted_cells", q.inverted_cells},
+          {"coverage_p95", q.coverage.p95},
+          {"attachment_max", std::max(q.attachment.origin_max, q.attachment.insertion_max)},
+          {"seconds", r.seconds}};
 }
 
 }  // namespace
@@ -638,27 +662,60 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options) {
   return alternative;
 }
 
+bool better_result(const CheckReport& a, const CheckReport& b) {
+  if (a.pass != b.pass) return a.pass;
+  if (a.failed.size() != b.failed.size()) return a.failed.size() < b.failed.size();
+  if (a.inverted_cells != b.inverted_cells) return a.inverted_cells < b.inverted_cells;
+  if (a.inside_fraction != b.inside_fraction) return a.inside_fraction > b.inside_fraction;
+  return a.coverage.p95 < b.coverage.p95;
+}
+
+std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given) {
+  std::vector<std::pair<std::string, DecomposeOptions>> plan;
+  if (options.retry_alternative) plan.emplace_back("alternative_placement", alternative_placement(options));
+  if (landmarks_given)
+    for (double twist : options.landmark_twists_deg) {
+      DecomposeOptions retry = options;
+      retry.placement.corner_twist_deg = twist;
+      plan.emplace_back("corner_twist", retry);
+    }
+  for (auto& [change, retry] : plan) {
+    retry.retry_alternative = false;
+    retry.landmark_twists_deg.clear();
+  }
+  return plan;
+}
+
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options) {
   options.validate();
-  const auto start = Clock::now();
-  Decomposition out = decompose_once(muscle, landmarks, options);
-  if (options.retry_alternative && !out.report.quality.pass) {
-    const DecomposeOptions alternative = alternative_placement(options);
-    Decomposition second = decompose_once(muscle, landmarks, alternative);
-    const bool keep_second = better(second.report.quality, out.report.quality);
-    nlohmann::json retry = {{"even_perimeter", alternative.placement.even_perimeter},
-                            {"contact_depth_min", alternative.contact_depth_min},
-                            {"first_status", out.report.status},
-                            {"first_inverted_cells", out.report.quality.inverted_cells},
-                            {"second_status", second.report.status},
-                            {"second_inverted_cells", second.report.quality.inverted_cells},
-                            {"kept", keep_second ? "second" : "first"}};
-    if (keep_second) out = std::move(second);
-    out.report.retry = std::move(retry);
+  Decomposition best = decompose_attempt(muscle, landmarks, options);
+  nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
+  double seconds = best.report.seconds;
+  int kept = 0;
+  for (const auto& [change, retry] : retry_plan(options, landmarks.given())) {
+    if (best.report.quality.pass) break;
+    try {
+      Decomposition d = decompose_attempt(muscle, landmarks, retry);
+      attempts.push_back(attempt_json(change, retry, d.report));
+      seconds += d.report.seconds;
+      if (better_result(d.report.quality, best.report.quality)) {
+        best = std::move(d);
+        kept = static_cast<int>(attempts.size()) - 1;
+      }
+    } catch (const Error& e) {
+      attempts.push_back({{"change", change},
+                          {"corner_twist_deg", retry.placement.corner_twist_deg},
+                          {"even_perimeter", retry.placement.even_perimeter},
+                          {"contact_depth_min", retry.contact_depth_min},
+                          {"status", "error"},
+                          {"error", e.what()}});
+    }
   }
-  out.report.seconds = since(start);
-  return out;
+  best.report.attempts = std::move(attempts);
+  best.report.kept_attempt = kept;
+  best.report.seconds = seconds;
+  return best;
 }
 
 }  // namespace fascicle

@@ -31,8 +31,8 @@
 ///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances.
-/// A result that fails the check is made once more with alternative_placement() and the better
-/// of the two kept (`retry_alternative`).
+/// A result that fails the check is made again with the options of retry_plan() (the alternative
+/// placement; with landmark areas other corner twists) and the best kept (better_result()).
 #include "fibres/fibre_check.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
@@ -46,6 +46,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
+#include <utility>
 
 namespace fascicle {
 
@@ -99,15 +100,27 @@ struct DecomposeOptions {
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
   /// fibres/untangle_lattice.h).
   LatticeUntangleOptions untangle;
-  /// When the fibres fail the check, decompose once more with alternative_placement() and keep
-  /// the better of the two results (passing first, then fewer failed criteria, fewer inverted
-  /// cells, larger inside fraction, lower coverage p95) (default true: the folds a placement
+  /// When the fibres fail the check, decompose once more with alternative_placement() (first in
+  /// retry_plan()) and keep the better result (better_result()) (default true: the folds a placement
   /// leaves depend on its free choices, and a muscle that folds with one often does not with
   /// the other; docs/BENCHMARKS.md, "Decompose").
   bool retry_alternative = true;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
+  /// Corner twists (degrees, each in [-180, 180]) tried in turn, each a whole decomposition with
+  /// placement.corner_twist_deg replaced, when the attachment areas come from landmarks and the
+  /// decomposition with placement.corner_twist_deg (and the alternative placement) fails the
+  /// check; the first that passes is kept, else the best by better_result(). Default
+  /// {0, 67.5, 22.5}: with the square cross-section the twist has a period of 90 degrees, and
+  /// these split it in steps of 22.5 with 45. Why: with landmark areas the poles of
+  /// the placement lie on the muscle's side, where the twist's reference (the muscle's second
+  /// principal axis seen from each level) is unreliable, and coverage p95 swings with the twist
+  /// (LHDL gluteus maximus, parallel template: 2.34 at 45, 2.56 at 0, 2.97 at 22.5, 1.83 at 67.5;
+  /// iliacus: 3.02 at 45, 1.85 at 0; docs/BENCHMARKS.md, "Decompose"). Automatic areas never
+  /// retry: their poles are the muscle's ends, where 45 was measured on the whole corpus. Empty:
+  /// no retry.
+  std::vector<double> landmark_twists_deg = {0.0, 67.5, 22.5};
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -125,8 +138,11 @@ struct DecomposeReport {
   std::string status;       ///< "ok" or "failed" (the quality check failed)
   std::string failure;      ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
-  nlohmann::json retry;     ///< the second try with the alternative placement, when there was one
   CheckReport quality;
+  /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
+  /// seconds), in order, and which was kept (DecomposeOptions::landmark_twists_deg).
+  nlohmann::json attempts = nlohmann::json::array();
+  int kept_attempt = 0;     ///< index into `attempts` of the result returned
   std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
   double repair_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,
          check_seconds = 0, seconds = 0;
@@ -146,6 +162,15 @@ struct Decomposition {
 /// smaller) and contact_depth (shallow contact targets on or off), and no further retry.
 DecomposeOptions alternative_placement(const DecomposeOptions& options);
 
+/// The retries of a decomposition that fails the check, in order, each with what it changes:
+/// "alternative_placement" (alternative_placement(), when options.retry_alternative), then with
+/// landmark areas one "corner_twist" per options.landmark_twists_deg entry. Retries do not retry.
+std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given);
+
+/// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
+/// inverted cells, a larger inside fraction, a lower coverage p95 (the first of equals is kept).
+bool better_result(const CheckReport& a, const CheckReport& b);
+
 /// Handedness of a settled lattice: +1 or -1 as its layers' (r, s) normals (the normals of their
 /// best affine fits over the index grid, inner points) point along or against the direction of
 /// growing t (from the layer before to the layer after), summed over the inner layers; 0 for a
@@ -161,9 +186,12 @@ int lattice_handedness(const springs::SpringSystem& system, const springs::Latti
 /// bijection or the settle diverges, Error(gpu) for GPU failures.
 Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options = {});
 
-/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; when the result
-/// fails the check and options.retry_alternative is set, once more with alternative_placement(),
-/// keeping the better result (its report then has "retry").
+/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; while the result
+/// fails the check, again with each of retry_plan()'s options in turn (the alternative placement,
+/// then, with landmark areas, the corner twists of options.landmark_twists_deg), keeping the best
+/// result by better_result() (the report's `attempts` lists every try, `kept_attempt` the one
+/// returned). Throws as decompose(); an exception in a retry (not the first attempt) is recorded
+/// in `attempts` and that retry skipped.
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options = {});
 

@@ -214,23 +214,66 @@ TEST_CASE("a decomposition that fails the check is tried again with the alternat
   const TriangleMesh mesh = capsule();
   const Decomposition once = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(once.report.quality.pass);
-  CHECK(once.report.retry.is_null());
-  CHECK_FALSE(once.report.to_json().contains("retry"));
+  CHECK(once.report.attempts.size() == 1);
+  CHECK(once.report.to_json()["attempts"].size() == 1);
   // A coverage limit no lattice meets: both tries fail, the report says which result it kept
   // (the better one).
   options.check.max_coverage_p95 = 1e-6;
   const Decomposition twice = decompose_repaired(mesh, Landmarks{}, options);
   CHECK_FALSE(twice.report.quality.pass);
-  REQUIRE(twice.report.to_json().contains("retry"));
-  const nlohmann::json& retry = twice.report.retry;
-  CHECK(retry["first_status"] == "failed");
-  CHECK(retry["second_status"] == "failed");
-  CHECK((retry["kept"] == "first" || retry["kept"] == "second"));
+  const nlohmann::json attempts = twice.report.to_json()["attempts"];
+  INFO(attempts.dump());
+  REQUIRE(attempts.size() == 2);
+  CHECK(attempts[0]["change"] == "none");
+  CHECK(attempts[0]["status"] == "failed");
+  CHECK(attempts[1]["change"] == "alternative_placement");
+  CHECK(attempts[1]["even_perimeter"] == alternative.placement.even_perimeter);
+  CHECK(attempts[1]["status"] == "failed");
+  const int kept = twice.report.kept_attempt;
+  REQUIRE((kept == 0 || kept == 1));
+  CHECK(attempts[kept]["inverted_cells"].get<long>() <= attempts[1 - kept]["inverted_cells"].get<long>());
+  CHECK(attempts[kept]["coverage_p95"].get<double>() == twice.report.quality.coverage.p95);
   CHECK(twice.report.placement.is_object());
   options.retry_alternative = false;
   const Decomposition no_retry = decompose_repaired(mesh, Landmarks{}, options);
-  CHECK(no_retry.report.retry.is_null());
+  CHECK(no_retry.report.attempts.size() == 1);
   CHECK(no_retry.report.quality.coverage.p95 == Approx(once.report.quality.coverage.p95));
+}
+
+TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
+  DecomposeOptions options;
+  options.landmark_twists_deg = {0.0, 67.5};
+  const auto automatic = retry_plan(options, false);
+  REQUIRE(automatic.size() == 1);
+  CHECK(automatic[0].first == "alternative_placement");
+  const auto given = retry_plan(options, true);
+  REQUIRE(given.size() == 3);
+  CHECK(given[1].first == "corner_twist");
+  CHECK(given[1].second.placement.corner_twist_deg == 0.0);
+  CHECK(given[2].second.placement.corner_twist_deg == 67.5);
+  CHECK(given[2].second.placement.even_perimeter == options.placement.even_perimeter);
+  for (const auto& [change, retry] : given) {
+    CHECK_FALSE(retry.retry_alternative);
+    CHECK(retry.landmark_twists_deg.empty());
+    CHECK_NOTHROW(retry.validate());
+  }
+  options.retry_alternative = false;
+  CHECK(retry_plan(options, false).empty());
+  CHECK(retry_plan(options, true).size() == 2);
+
+  CheckReport pass, fail_one, fail_one_folded, fail_two;
+  pass.pass = true;
+  fail_one.failed = {"coverage"};
+  fail_one.inverted_cells = 0;
+  fail_one_folded.failed = {"inverted_cells"};
+  fail_one_folded.inverted_cells = 12;
+  fail_two.failed = {"coverage", "inverted_cells"};
+  fail_two.inverted_cells = 3;
+  CHECK(better_result(pass, fail_one));
+  CHECK_FALSE(better_result(fail_one, pass));
+  CHECK(better_result(fail_one_folded, fail_two));
+  CHECK(better_result(fail_one, fail_one_folded));
+  CHECK_FALSE(better_result(fail_one, fail_one));  // equals: the first is kept
 }
 
 TEST_CASE("a lattice's handedness follows its layers' turn along the fibres", "[fibres][decompose]") {
