@@ -166,6 +166,9 @@ void add_decompose_command(CLI::App& app) {
                   "When the fibres fail the check, decompose once more with the alternative placement (even "
                   "perimeter and shallow contact switched) and keep the better result")
       ->capture_default_str();
+  cmd->add_option("--retry-max-inverted", o.retry_max_inverted_cells,
+                  "Skip the second try when the first result has more inverted cells than this")
+      ->capture_default_str();
   cmd->add_option("--contact-depth-min", o.contact_depth_min,
                   "Depth (local spacings) of the containment target of a point only just outside the muscle")
       ->capture_default_str();

@@ -346,6 +346,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
     throw OptionError("contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
+  if (retry_max_inverted_cells < 0)
+    throw OptionError("retry_max_inverted_cells: must be >= 0, got " + std::to_string(retry_max_inverted_cells));
   if (!(contact_depth_min > 0.0 && contact_depth_min <= contact_depth))
     throw OptionError("contact_depth_min: must be in (0, contact_depth], got " + std::to_string(contact_depth_min));
   if (smooth_steps < 0 || smooth_steps > 100'000)
@@ -695,6 +697,13 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   int kept = 0;
   for (const auto& [change, retry] : retry_plan(options, landmarks.given())) {
     if (best.report.quality.pass) break;
+    if (change == "alternative_placement" && best.report.quality.inverted_cells > options.retry_max_inverted_cells) {
+      attempts.push_back({{"change", change},
+                          {"status", "skipped"},
+                          {"why", "the first result has more than retry_max_inverted_cells (" +
+                                      std::to_string(options.retry_max_inverted_cells) + ") inverted cells"}});
+      continue;
+    }
     try {
       Decomposition d = decompose_attempt(muscle, landmarks, retry);
       attempts.push_back(attempt_json(change, retry, d.report));

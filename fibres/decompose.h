@@ -105,6 +105,12 @@ struct DecomposeOptions {
   /// leaves depend on its free choices, and a muscle that folds with one often does not with
   /// the other; docs/BENCHMARKS.md, "Decompose").
   bool retry_alternative = true;
+  /// The second try is skipped when the first result has more inverted cells than this, >= 0
+  /// (default 50: on the 47 corpus muscles no first result with more folded cells (72, 135, 204,
+  /// 311) passed on the second try, and those tries took 40 s of the batch's 233 s of processor
+  /// time; results with 2-47 were retried and two of them then passed; docs/BENCHMARKS.md,
+  /// "Decompose").
+  long retry_max_inverted_cells = 50;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)

@@ -46,17 +46,33 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     unfolded += q["inverted_cells"].get<long>() == 0;
     inverted += q["inverted_cells"].get<long>();
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
+    // The retries: none after a pass; after a failure the second try runs unless the first
+    // result has more than retry_max_inverted_cells (50) inverted cells, and is then listed as
+    // skipped; the kept attempt's figures are the report's.
+    const auto& attempts = r["attempts"];
+    REQUIRE(attempts.size() >= 1);
+    CHECK(attempts[0]["change"] == "none");
+    if (attempts[0]["status"] == "ok") CHECK(attempts.size() == 1);
+    else {
+      REQUIRE(attempts.size() == 2);
+      CHECK(attempts[1]["change"] == "alternative_placement");
+      CHECK(attempts[1]["status"] == (attempts[0]["inverted_cells"].get<long>() > 50 ? "skipped" : attempts[1]["status"]));
+      if (attempts[0]["inverted_cells"].get<long>() <= 50) CHECK(attempts[1]["status"] != "skipped");
+    }
+    const auto& kept = attempts[r["kept_attempt"].get<std::size_t>()];
+    CHECK(kept["inverted_cells"] == q["inverted_cells"]);
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Measured on 2026-11-21 21:15-21:22 UTC (docs/BENCHMARKS.md,
+  // Floors, not the goal (every muscle). Measured on 2026-11-21 22:06-22:08 UTC (docs/BENCHMARKS.md,
   // "Decompose"): 40 of 47 pass every criterion, 41 have no inverted cell, 46 have coverage p95
-  // <= 2, 714 inverted cells in all (ends cast so that they turn the lattice's way, a second try
-  // with the alternative placement for a muscle that fails); at 19:38 the figures were 38, 38, 47
-  // and 979, at 16:34 20, 30, 28. One below each (the total: about 5 % above), for a different
-  // processor's rounding.
+  // <= 2, 771 inverted cells in all (ends cast so that they turn the lattice's way, a second try
+  // with the alternative placement for a muscle that fails with at most 50 inverted cells; with
+  // the second try for every failing muscle 713, 21:15 UTC, for 18 s more batch wall time); at
+  // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below each (the total:
+  // about 4 % above), for a different processor's rounding.
   CHECK(passed >= 39);
   CHECK(unfolded >= 40);
   CHECK(covered >= 45);
-  CHECK(inverted <= 750);
+  CHECK(inverted <= 800);
 }
