@@ -637,20 +637,26 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
   return out;
 }
 
-// One entry of the report's `attempts`: what the attempt changed and how its check came out.
-nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& options, const DecomposeReport& r) {
-  const CheckReport& q = r.quality;
+// The start of an entry of the report's `attempts`: what the attempt changed.
+nlohmann::json attempt_header(const std::string& change, const DecomposeOptions& options) {
   return {{"change", change},
           {"corner_twist_deg", options.placement.corner_twist_deg},
           {"even_perimeter", options.placement.even_perimeter},
-          {"contact_depth_min", options.contact_depth_min},
-          {"status", r.status},
-          {"failed", q.failed},
-          {"inside_fraction", q.inside_fraction},
-          {"inverted_cells", q.inverted_cells},
-          {"coverage_p95", q.coverage.p95},
-          {"attachment_max", std::max(q.attachment.origin_max, q.attachment.insertion_max)},
-          {"seconds", r.seconds}};
+          {"contact_depth_min", options.contact_depth_min}};
+}
+
+// One entry of the report's `attempts`: what the attempt changed and how its check came out.
+nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& options, const DecomposeReport& r) {
+  const CheckReport& q = r.quality;
+  nlohmann::json j = attempt_header(change, options);
+  j["status"] = r.status;
+  j["failed"] = q.failed;
+  j["inside_fraction"] = q.inside_fraction;
+  j["inverted_cells"] = q.inverted_cells;
+  j["coverage_p95"] = q.coverage.p95;
+  j["attachment_max"] = std::max(q.attachment.origin_max, q.attachment.insertion_max);
+  j["seconds"] = r.seconds;
+  return j;
 }
 
 }  // namespace
@@ -713,12 +719,10 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
         kept = static_cast<int>(attempts.size()) - 1;
       }
     } catch (const Error& e) {
-      attempts.push_back({{"change", change},
-                          {"corner_twist_deg", retry.placement.corner_twist_deg},
-                          {"even_perimeter", retry.placement.even_perimeter},
-                          {"contact_depth_min", retry.contact_depth_min},
-                          {"status", "error"},
-                          {"error", e.what()}});
+      nlohmann::json failed = attempt_header(change, retry);
+      failed["status"] = "error";
+      failed["error"] = e.what();
+      attempts.push_back(std::move(failed));
     }
   }
   best.report.attempts = std::move(attempts);

@@ -32,6 +32,19 @@ Lattice small_lattice(SpringModel model) {
   return build_lattice(options);
 }
 
+// A targets file (lines "index x y z") moving every fixed point of `lattice` by
+// (x, y, z) -> (1.2 x, scale_y y, z + 0.1 x).
+void write_moved_targets(const std::string& path, const Lattice& lattice, double scale_y) {
+  std::string text;
+  for (int i = 0; i < lattice.point_count(); ++i)
+    if (lattice.system.fixed[i]) {
+      const Vec3 p = lattice.system.positions[i];
+      text += std::to_string(i) + " " + std::to_string(1.2 * p.x()) + " " + std::to_string(scale_y * p.y()) + " " +
+              std::to_string(p.z() + 0.1 * p.x()) + "\n";
+    }
+  write_text(path, text);
+}
+
 }  // namespace
 
 TEST_CASE("target files: good lines, comments, and one error per problem", "[springs][settle]") {
@@ -108,15 +121,8 @@ TEST_CASE("fascicle settle on a thesis-format lattice", "[springs][settle][progr
   const Lattice lattice = small_lattice(SpringModel::model6);
   const std::string input = dir.file("lattice.txt");
   write_thesis_model(input, to_thesis_model(lattice));
-  std::string targets_text;
-  for (int i = 0; i < lattice.point_count(); ++i)
-    if (lattice.system.fixed[i]) {
-      const Vec3 p = lattice.system.positions[i];
-      targets_text += std::to_string(i) + " " + std::to_string(1.2 * p.x()) + " " + std::to_string(0.9 * p.y()) +
-                      " " + std::to_string(p.z() + 0.1 * p.x()) + "\n";
-    }
   const std::string targets = dir.file("targets.txt");
-  write_text(targets, targets_text);
+  write_moved_targets(targets, lattice, 0.9);
   const std::string output = dir.file("out.txt"), report = dir.file("report.json");
   for (const char* solver : {"verlet", "static", "static --static-method multigrid"}) {
     INFO(solver);
@@ -166,14 +172,7 @@ TEST_CASE("fascicle settle --coarse-start", "[springs][settle][program]") {
   const Lattice lattice = build_lattice(options);
   const std::string input = dir.file("lattice.txt");
   write_thesis_model(input, to_thesis_model(lattice));
-  std::string targets_text;
-  for (int i = 0; i < lattice.point_count(); ++i)
-    if (lattice.system.fixed[i]) {
-      const Vec3 p = lattice.system.positions[i];
-      targets_text += std::to_string(i) + " " + std::to_string(1.2 * p.x()) + " " + std::to_string(1.1 * p.y()) +
-                      " " + std::to_string(p.z() + 0.1 * p.x()) + "\n";
-    }
-  write_text(dir.file("targets.txt"), targets_text);
+  write_moved_targets(dir.file("targets.txt"), lattice, 1.1);
   const std::string base = test::program() + " --quiet settle " + input + " --targets " + dir.file("targets.txt") +
                            " --solver static --tolerance 1e-9";
   std::vector<ThesisModel> settled;
