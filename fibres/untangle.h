@@ -11,7 +11,7 @@
 /// a shape term and a volume term that are finite for any J while eps > 0 and become a
 /// barrier against det J <= 0 as eps -> 0. The total (weighted sum) is minimised by L-BFGS
 /// with a backtracking line search, eps lowered after each stage by the paper's rule (from the
-/// smallest det J and the energy's relative decrease), until every tetrahedron is positive,
+/// smallest det J and the energy's relative decrease, at least `min_sigma`), until every tetrahedron is positive,
 /// then a few more iterations improve the shapes with the barrier in force.
 ///
 /// The fibre lattice uses it to unfold the cells that the settle leaves inverted
@@ -37,6 +37,11 @@ struct UntangleOptions {
   /// Stop when neither the smallest det J has grown nor the inverted count fallen for this
   /// many stages, >= 1 (default 15).
   int stall_stages = 15;
+  /// Least sigma of the eps rule (each stage aims eps at (1 - sigma) chi(min det J); sigma is the
+  /// stage's relative energy decrease, at least this), (0, 1) (default 0.3; the paper's 0.1 took
+  /// ~3x the stages on folds that are a small part of the energy, e.g. 42 stages for 13 folded
+  /// tetrahedra of the LHDL gluteus maximus, docs/BENCHMARKS.md).
+  double min_sigma = 0.3;
   int polish_iterations = 30;  ///< iterations after the last tetrahedron turned positive, >= 0 (default 30)
   /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
   /// (default 1e-4: well clear of the round-off limit of the quality check).

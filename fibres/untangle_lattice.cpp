@@ -24,6 +24,8 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("untangle contact_weight: must be in (0, 1e12), got " + std::to_string(contact_weight));
   if (pin_rounds < 0 || pin_rounds > 100)
     throw OptionError("untangle pin_rounds: must be in 0..100, got " + std::to_string(pin_rounds));
+  if (contact_stall_rounds < 0 || contact_stall_rounds > 100)
+    throw OptionError("untangle contact_stall_rounds: must be in 0..100, got " + std::to_string(contact_stall_rounds));
   if (contact_rounds < 0 || contact_rounds > 100)
     throw OptionError("untangle contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
@@ -32,7 +34,8 @@ void LatticeUntangleOptions::validate() const {
 
 nlohmann::json LatticeUntangleReport::to_json() const {
   return {{"runs", runs},         {"inverted_before", inverted_before}, {"inverted_left", inverted_left},
-          {"budget_left", budget_left}, {"pinned", pinned},             {"kept", kept}};
+          {"budget_left", budget_left}, {"pinned", pinned},             {"kept", kept},
+          {"stops", stops},             {"iterations", iterations}};
 }
 
 std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
@@ -208,6 +211,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           }
     }
     long best_round = inverted_count();  // fewest folded tetrahedra after a round of this attempt
+    long best_outside = -1;  // fewest points outside after a round of this attempt (-1: none yet)
+    int outside_stalled = 0;  // rounds in a row since the last that left fewer outside
     for (int round = 0;; ++round) {
       const std::size_t runs_before = runs.size();
       long previous_free = -1;  // free points of the previous run of this round
@@ -255,6 +260,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         run["anchors"] = anchors.size();
         runs.push_back(run);
         budget -= untangled.iterations;
+        report.iterations += untangled.iterations;
         if (untangled.untangled()) break;
       }
       outside = outside_free_points(system, query);
@@ -262,13 +268,36 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         runs.back()["outside"] = outside.size();
         runs.back()["free_ends"] = free_ends;
       }
-      if (outside.empty() || round == options.contact_rounds || budget <= 0) break;
-      // A round that left cells folded and did not fold fewer than the best round before is a
-      // stall: the containment pins of further rounds only pull against the same fold (the
-      // attempts after this one start elsewhere).
-      const long now = inverted_count();
-      if (now > 0 && now >= best_round) break;
-      best_round = std::min(best_round, now);
+      const long now_outside = static_cast<long>(outside.size());
+      if (best_outside < 0 || now_outside < best_outside) {
+        best_outside = now_outside;
+        outside_stalled = 0;
+      } else {
+        ++outside_stalled;
+      }
+      std::string stop = outside.empty()                  ? "contained"
+                         : round == options.contact_rounds ? "rounds"
+                         : budget <= 0                     ? "budget"
+                                                           : "";
+      if (stop.empty()) {
+        // Rounds that do not leave fewer points outside than the best round before: the soft
+        // pins only push the fold around (points come in here, others go out there); the pins
+        // at the end take the points still outside.
+        if (options.contact_stall_rounds > 0 && outside_stalled >= options.contact_stall_rounds) stop = "outside_stalled";
+      }
+      if (stop.empty()) {
+        // A round that left cells folded and did not fold fewer than the best round before is a
+        // stall: the containment pins of further rounds only pull against the same fold (the
+        // attempts after this one start elsewhere).
+        const long now = inverted_count();
+        if (now > 0 && now >= best_round) stop = "fold_stalled";
+        best_round = std::min(best_round, now);
+      }
+      if (!stop.empty()) {
+        if (runs.size() > runs_before) runs.back()["stop"] = stop;
+        report.stops[stop] = report.stops.value(stop, 0) + 1;
+        break;
+      }
       // Containment: an outside point gets a soft pin just inside, 4x stronger each round.
       const std::vector<double> spacing = lattice_local_spacing(system);
       for (int q : outside) {

@@ -14,7 +14,8 @@
 /// muscle length from them: a cell against an end face can need that), and a third goes on from
 /// there with the ends held; the result with the fewest folded cells stays. Containment is part
 /// of every attempt: a point moved outside gets a soft pin just inside (stronger each round); an
-/// attempt stops when a round does not fold fewer cells than the rounds before it. At the end a
+/// attempt stops when a round does not fold fewer cells than the rounds before it (or, when asked,
+/// after `contact_stall_rounds` rounds in a row that did not leave fewer points outside). At the end a
 /// point still outside is fixed just inside and the cells around it are untangled again with it
 /// fixed (`pin_rounds`; undone when that does not fold fewer cells), so that no step after the
 /// untangling moves a lattice point and the pins do not fold cells behind the untangling's back.
@@ -49,6 +50,13 @@ struct LatticeUntangleOptions {
   double contact_weight = 30.0;
   /// Containment rounds of an attempt (soft pins, untangle again), >= 0 (default 6).
   int contact_rounds = 6;
+  /// An attempt's containment rounds stop after this many rounds in a row that did not leave
+  /// fewer points outside than the best round of the attempt before them (the pins at the end take
+  /// the points still outside), 0..100, 0 = never (default 0: 2 halved the untangling's iterations
+  /// on the LHDL gluteus maximus, whose soft pins of rounds 3 to 6 pushed points out as fast as
+  /// they pulled others in, but the more points the pins at the end then took folded the LHDL
+  /// iliacus (98 cells) and the VHF tensor fasciae latae (1) in the corpus, docs/BENCHMARKS.md).
+  int contact_stall_rounds = 0;
   /// Rounds of "fix the points still outside just inside, untangle again with them fixed" at the
   /// end, >= 0 (default 3; the pins of the last round stay even if they fold a cell, which the
   /// report then counts).
@@ -67,6 +75,11 @@ struct LatticeUntangleReport {
   int budget_left = 0;        ///< iterations left to the last attempt
   long pinned = 0;            ///< points fixed just inside at the end of an attempt
   std::string kept;           ///< the attempt kept: held_ends, free_ends or free_then_held_ends
+  /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
+  /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
+  /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells).
+  nlohmann::json stops = nlohmann::json::object();
+  long iterations = 0;        ///< L-BFGS iterations of all runs
   nlohmann::json to_json() const;
 };
 
