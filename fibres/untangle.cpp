@@ -3,6 +3,8 @@
 #include "geometry/errors.h"
 
 #include <Eigen/LU>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,6 +19,10 @@ namespace fascicle {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Active tetrahedra from which an energy evaluation runs in parallel (below that the threads'
+// start costs more than they save).
+constexpr std::size_t kParallelTets = 2048;
 
 Eigen::Matrix3d edge_matrix(const std::vector<Vec3>& x, const std::array<int, 4>& v) {
   Eigen::Matrix3d d;
@@ -79,31 +85,49 @@ class Energy {
   void set(const Eigen::VectorXd& x) {
     for (std::size_t f = 0; f < free_.size(); ++f) positions_[static_cast<std::size_t>(free_[f])] = x.segment<3>(3 * static_cast<Eigen::Index>(f));
   }
-  // Energy at x (with eps), gradient into g when given.
+  // Energy at x (with eps), gradient into g when given. The tetrahedra's terms are computed in
+  // parallel (one slot each) and summed in their order, so the result is the same, bit for bit,
+  // as the serial sum's, whatever the threads.
   double evaluate(const Eigen::VectorXd& x, double eps, Eigen::VectorXd* g) {
     set(x);
     ++evaluations;
     if (g) g->setZero(x.size());
+    const std::size_t n = active_.size();
+    terms_.resize(n);
+    if (g) gradients_.resize(n);
+    auto terms = [&](std::size_t begin, std::size_t end) {
+      for (std::size_t a = begin; a < end; ++a) {
+        const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
+        const Eigen::Matrix3d j = edge_matrix(positions_, tet.v) * tet.reference_inverse;
+        const double det = j.determinant();
+        const double eps_t = std::max(eps, tet.eps_floor);
+        const double c = chi(det, eps_t);
+        const double c23 = two_thirds_power(c);
+        const double frob = j.squaredNorm();
+        const double shape = frob / c23;
+        const double volume = (det * det + 1.0) / c;
+        terms_[a] = tet.weight * ((1.0 - lambda_) * shape + lambda_ * volume);
+        if (!g) continue;
+        const double dc = chi_derivative(det, eps_t);
+        const Eigen::Matrix3d cof = cofactor(j);
+        // d shape / dJ = 2 J / c^(2/3) - (2/3) frob c^(-5/3) dc cof
+        // d volume / dJ = (2 det / c - (det^2 + 1) dc / c^2) cof
+        const Eigen::Matrix3d dj = (1.0 - lambda_) * (2.0 / c23 * j - (2.0 / 3.0) * shape / c * dc * cof) +
+                                   lambda_ * (2.0 * det / c - (det * det + 1.0) * dc / (c * c)) * cof;
+        gradients_[a] = tet.weight * dj * tet.reference_inverse.transpose();
+      }
+    };
+    if (n >= kParallelTets)
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kParallelTets / 4),
+                        [&](const tbb::blocked_range<std::size_t>& r) { terms(r.begin(), r.end()); });
+    else
+      terms(0, n);
     double e = 0.0;
-    for (int t : active_) {
-      const UntangleTet& tet = tets_[static_cast<std::size_t>(t)];
-      const Eigen::Matrix3d j = edge_matrix(positions_, tet.v) * tet.reference_inverse;
-      const double det = j.determinant();
-      const double eps_t = std::max(eps, tet.eps_floor);
-      const double c = chi(det, eps_t);
-      const double c23 = two_thirds_power(c);
-      const double frob = j.squaredNorm();
-      const double shape = frob / c23;
-      const double volume = (det * det + 1.0) / c;
-      e += tet.weight * ((1.0 - lambda_) * shape + lambda_ * volume);
+    for (std::size_t a = 0; a < n; ++a) {
+      e += terms_[a];
       if (!g) continue;
-      const double dc = chi_derivative(det, eps_t);
-      const Eigen::Matrix3d cof = cofactor(j);
-      // d shape / dJ = 2 J / c^(2/3) - (2/3) frob c^(-5/3) dc cof
-      // d volume / dJ = (2 det / c - (det^2 + 1) dc / c^2) cof
-      const Eigen::Matrix3d dj = (1.0 - lambda_) * (2.0 / c23 * j - (2.0 / 3.0) * shape / c * dc * cof) +
-                                 lambda_ * (2.0 * det / c - (det * det + 1.0) * dc / (c * c)) * cof;
-      const Eigen::Matrix3d dd = tet.weight * dj * tet.reference_inverse.transpose();
+      const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
+      const Eigen::Matrix3d& dd = gradients_[a];
       Vec3 g0 = Vec3::Zero();
       for (int col = 0; col < 3; ++col) {
         const int s = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])];
@@ -130,6 +154,8 @@ class Energy {
   const std::vector<UntangleAnchor>& anchors_;
   double lambda_;
   std::vector<int> slot_, free_, active_;
+  std::vector<double> terms_;              // each active tetrahedron's energy term
+  std::vector<Eigen::Matrix3d> gradients_;  // and its gradient by the edge vectors (columns)
 };
 
 struct Census {

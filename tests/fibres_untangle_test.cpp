@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <random>
 #include <set>
+#include <tbb/global_control.h>
 
 using namespace fascicle;
 
@@ -162,6 +163,31 @@ TEST_CASE("untangle: a floor of sigma lowers eps in fewer stages on a fold that 
   CHECK(inverted(fast.positions, fast.tets) == 0);
   CHECK(b.stages < a.stages);
   CHECK(b.iterations < a.iterations);
+}
+
+TEST_CASE("untangle: the energy's terms computed on several threads give the serial result, bit for bit",
+          "[fibres][untangle]") {
+  // 13^3 cells, 13 182 tetrahedra: above the size from which an evaluation runs in parallel.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> jitter(-0.06, 0.06);
+  Grid g = make_grid(14);
+  for (std::size_t q = 0; q < g.positions.size(); ++q)
+    if (!g.fixed[q]) g.positions[q] += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  REQUIRE(inverted(g.positions, g.tets) > 0);
+  REQUIRE(g.tets.size() > 2048u);
+  std::vector<Vec3> one_thread = g.positions, threads = g.positions;
+  UntangleReport serial, parallel;
+  {
+    tbb::global_control only_one(tbb::global_control::max_allowed_parallelism, 1);
+    serial = untangle(one_thread, g.fixed, g.tets);
+  }
+  parallel = untangle(threads, g.fixed, g.tets);
+  INFO("one thread: " << serial.to_json().dump() << "\nthreads: " << parallel.to_json().dump());
+  CHECK(serial.untangled());
+  CHECK(parallel.iterations == serial.iterations);
+  CHECK(parallel.evaluations == serial.evaluations);
+  CHECK(parallel.min_det_after == serial.min_det_after);  // bitwise
+  CHECK(threads == one_thread);                            // bitwise
 }
 
 TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
