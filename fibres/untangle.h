@@ -11,8 +11,9 @@
 /// a shape term and a volume term that are finite for any J while eps > 0 and become a
 /// barrier against det J <= 0 as eps -> 0. The total (weighted sum) is minimised by L-BFGS
 /// with a backtracking line search, eps lowered after each stage by the paper's rule (from the
-/// smallest det J and the energy's relative decrease, at least `min_sigma`), until every tetrahedron is positive,
-/// then a few more iterations improve the shapes with the barrier in force.
+/// smallest det J and the energy's relative decrease, at least `min_sigma`), until every
+/// tetrahedron is positive, then a few more iterations improve the shapes with the barrier in
+/// force.
 ///
 /// The fibre lattice uses it to unfold the cells that the settle leaves inverted
 /// (fibres/decompose.h): hexahedral cells split into the six tetrahedra of the Kuhn

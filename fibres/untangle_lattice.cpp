@@ -283,7 +283,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         // Rounds that do not leave fewer points outside than the best round before: the soft
         // pins only push the fold around (points come in here, others go out there); the pins
         // at the end take the points still outside.
-        if (options.contact_stall_rounds > 0 && outside_stalled >= options.contact_stall_rounds) stop = "outside_stalled";
+        if (options.contact_stall_rounds > 0 && outside_stalled >= options.contact_stall_rounds)
+          stop = "outside_stalled";
       }
       if (stop.empty()) {
         // A round that left cells folded and did not fold fewer than the best round before is a
