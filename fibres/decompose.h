@@ -34,6 +34,7 @@
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
 #include "fibres/fibre_check.h"
+#include "fibres/landmark_strip.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
@@ -67,6 +68,9 @@ struct DecomposeOptions {
   RepairOptions repair;             ///< repair stage (defaults: repair/repair.h)
   SphereMapOptions sphere;          ///< muscle sphere map (default tutte)
   AttachmentOptions attachments;    ///< landmark tolerance, automatic end fraction
+  /// Landmark areas joined into gapless strips along their spanning tree before the placement,
+  /// the cast and the check (fibres/landmark_strip.h; default on, longest join 0.1 of the length).
+  StripOptions strip;
   PlacementOptions placement;       ///< regions and alignment on the sphere
   springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
   int fibres = 100;                 ///< fibres output, >= 4, split near-square (default 100)
