@@ -142,6 +142,10 @@ void add_decompose_command(CLI::App& app) {
                   "Join each landmark area's points along their spanning tree into a gapless strip (true) or keep "
                   "disks round the points (false)")
       ->capture_default_str();
+  cmd->add_option("--strip-fallback", o.strip.disk_fallback,
+                  "When every try with landmark strips fails the check, try again with the landmark disks and keep "
+                  "the best")
+      ->capture_default_str();
   cmd->add_option("--strip-max-gap", o.strip.max_gap,
                   "Longest join of landmark points into a strip, as a fraction of the muscle length")
       ->capture_default_str();

@@ -685,7 +685,8 @@ nlohmann::json attempt_header(const std::string& change, const DecomposeOptions&
   return {{"change", change},
           {"corner_twist_deg", options.placement.corner_twist_deg},
           {"even_perimeter", options.placement.even_perimeter},
-          {"contact_depth_min", options.contact_depth_min}};
+          {"contact_depth_min", options.contact_depth_min},
+          {"landmark_strip", options.strip.join}};
 }
 
 // One entry of the report's `attempts`: what the attempt changed and how its check came out.
@@ -734,6 +735,16 @@ std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const Decompose
     retry.retry_alternative = false;
     retry.landmark_twists_deg.clear();
   }
+  // Landmark strips that fail every try: the whole plan again with the landmark disks.
+  if (landmarks_given && options.strip.join && options.strip.disk_fallback) {
+    DecomposeOptions disks = options;
+    disks.strip.join = false;
+    auto first = disks;
+    first.retry_alternative = false;
+    first.landmark_twists_deg.clear();
+    plan.emplace_back("landmark_disks", first);
+    for (auto& [change, retry] : retry_plan(disks, true)) plan.emplace_back("landmark_disks_" + change, retry);
+  }
   return plan;
 }
 
@@ -744,9 +755,12 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
+  // Inverted cells of the first try of the current sequence (the strips', then the disks').
+  long first_inverted = best.report.quality.inverted_cells;
   for (const auto& [change, retry] : retry_plan(options, landmarks.given())) {
     if (best.report.quality.pass) break;
-    if (change == "alternative_placement" && best.report.quality.inverted_cells > options.retry_max_inverted_cells) {
+    if ((change == "alternative_placement" || change == "landmark_disks_alternative_placement") &&
+        first_inverted > options.retry_max_inverted_cells) {
       attempts.push_back({{"change", change},
                           {"status", "skipped"},
                           {"why", "the first result has more than retry_max_inverted_cells (" +
@@ -755,6 +769,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     }
     try {
       Decomposition d = decompose_attempt(muscle, landmarks, retry);
+      if (change == "landmark_disks") first_inverted = d.report.quality.inverted_cells;
       attempts.push_back(attempt_json(change, retry, d.report));
       seconds += d.report.seconds;
       if (better_result(d.report.quality, best.report.quality)) {

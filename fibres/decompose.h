@@ -174,7 +174,10 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 
 /// The retries of a decomposition that fails the check, in order, each with what it changes:
 /// "alternative_placement" (alternative_placement(), when options.retry_alternative), then with
-/// landmark areas one "corner_twist" per options.landmark_twists_deg entry. Retries do not retry.
+/// landmark areas one "corner_twist" per options.landmark_twists_deg entry; then, with landmark
+/// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
+/// the strips off) and the same plan again with the strips off, each change prefixed
+/// "landmark_disks_". Retries do not retry.
 std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
