@@ -332,7 +332,8 @@ void add_batch_command(CLI::App& app) {
   // Decompose options, passed through unchanged.
   for (const char* name : {"--template", "--fibres", "--resolution", "--model", "--solver", "--tolerance",
                            "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest", "--corner-twist",
-                           "--even-perimeter", "--retry", "--retry-max-inverted"}) {
+                           "--even-perimeter", "--retry", "--retry-max-inverted", "--landmark-strip",
+                           "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

@@ -138,6 +138,17 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--region-radius", o.placement.region_radius,
                   "Attachment region: vertices within this fraction of the muscle length of an area point")
       ->capture_default_str();
+  cmd->add_option("--landmark-strip", o.strip.join,
+                  "Join each landmark area's points along their spanning tree into a gapless strip (true) or keep "
+                  "disks round the points (false)")
+      ->capture_default_str();
+  cmd->add_option("--strip-fallback", o.strip.disk_fallback,
+                  "When every try with landmark strips fails the check, try again with the landmark disks and keep "
+                  "the best")
+      ->capture_default_str();
+  cmd->add_option("--strip-max-gap", o.strip.max_gap,
+                  "Longest join of landmark points into a strip, as a fraction of the muscle length")
+      ->capture_default_str();
   cmd->add_option("--rest", args->rest,
                   "Spring rest lengths: tension (template, stretched, all springs start in tension), template "
                   "(stretched), zero (harmonic map)")

@@ -1,6 +1,7 @@
 #include "fibres/decompose.h"
 
 #include "fibres/fibre_grid.h"
+#include "fibres/strip_cast.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
@@ -188,8 +189,10 @@ namespace {
 // point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
 // it), the axis from the layer's centroid to the area's centre is tried, then the axis to the
 // area point nearest to that centroid; the ends stay where they were when none fits.
+// With `strip` (landmark areas joined into strips) the factor is split into one along the strip
+// and one across it (fibres/strip_cast.h).
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
-                          const Attachments& areas, double radius) {
+                          const Attachments& areas, double radius, bool strip = false) {
   nlohmann::json out = nlohmann::json::array();
   const double reach = 4.0 * (bounding_box(muscle.positions).diagonal() + 1e-300);
   const int hand = lattice_handedness(system, lattice);
@@ -255,7 +258,30 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     bool placed = false;
     std::vector<Vec3> ends;
     std::size_t used_axis = 0;
-    for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
+    nlohmann::json strip_factors;
+    if (strip) {
+      std::vector<Vec3> area_points;
+      for (const SurfacePoint& p : area->points) area_points.push_back(p.position);
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) { return ray_hit(muscle, start, axis, reach, end); };
+      const auto near = [&](const Vec3& end) {
+        for (const SurfacePoint& p : area->points)
+          if ((p.position - end).squaredNorm() <= radius * radius) return true;
+        return false;
+      };
+      for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
+        const StripCast cast = cast_strip_face(c1, offsets, axes[a], area_points, hit, near);
+        placed = cast.placed;
+        used_axis = a;
+        if (placed) {
+          ends = cast.ends;
+          // Reported as one shrink, the geometric mean of the two (the code below divides the
+          // single-factor search's last factor tried by 0.8, hence the 0.8 here).
+          lambda = std::sqrt(cast.lambda_long * cast.lambda_cross) * 0.8;
+          strip_factors = {cast.lambda_long, cast.lambda_cross};
+        }
+      }
+    }
+    for (std::size_t a = 0; a < axes.size() && !placed && !strip; ++a) {
       lambda = 1.0;
       for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
         ends.clear();
@@ -290,6 +316,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
                    {"from", folded ? (fit_layer == k1 ? "affine_fit" : fit_layer < 0 ? "layer_folded" : "affine_fit_deeper") : "layer"},
                    {"fit_layer", fit_layer},
                    {"axis", used_axis == 0 ? "layer" : used_axis == 1 ? "area" : "nearest_area_point"}});
+    if (strip) out.back()["strip_factors"] = strip_factors;
   }
   return out;
 }
@@ -324,6 +351,7 @@ void DecomposeOptions::validate() const {
   repair.validate();
   sphere.validate();
   attachments.validate();
+  strip.validate();
   placement.validate();
   settle.validate();
   untangle.validate();
@@ -397,6 +425,18 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
 
 namespace {
 
+// Both landmark areas joined into strips (fibres/landmark_strip.h); what was done, for the
+// report, with the face shape the placement then gets.
+nlohmann::json join_strips(const TriangleMesh& muscle, Attachments& areas, const StripOptions& options) {
+  if (!options.join) return {{"face_shape", "landmark_disks"}};
+  const SurfaceQuery query(muscle);
+  const double length = muscle_length(muscle);
+  StripReport origin, insertion;
+  areas.origin = join_landmark_strip(areas.origin, query, length, options, &origin);
+  areas.insertion = join_landmark_strip(areas.insertion, query, length, options, &insertion);
+  return {{"face_shape", "joined_strip"}, {"origin", origin.to_json()}, {"insertion", insertion.to_json()}};
+}
+
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
 Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& landmarks,
                                 const DecomposeOptions& options) {
@@ -407,11 +447,13 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
 
   // Attachment areas.
   Attachments areas;
+  nlohmann::json strip;  // landmark areas only: how they were joined
   if (landmarks.given()) {
     if (landmarks.origin.empty() || landmarks.insertion.empty())
       throw OptionError("landmarks: give both an origin and an insertion file, or neither (automatic areas)");
     areas = landmark_attachments(muscle, landmarks.origin, landmarks.origin_source, landmarks.insertion,
                                  landmarks.insertion_source, options.attachments);
+    strip = join_strips(muscle, areas, options.strip);
   } else {
     areas = automatic_attachments(muscle, options.attachments);
   }
@@ -422,6 +464,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
                         {"insertion", {{"source", areas.insertion.source},
                                        {"points", areas.insertion.points.size()},
                                        {"max_distance", areas.insertion.max_distance}}}};
+  if (!strip.is_null()) report.attachments["strip"] = strip;
 
   // Sphere map of the muscle.
   auto stage = Clock::now();
@@ -571,7 +614,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
   nlohmann::json casts = nlohmann::json::array();
   const double end_radius = options.placement.region_radius * muscle_length(muscle);
   for (int round = 0; round < options.cast_rounds; ++round) {
-    casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius));
+    casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius, landmarks.given() && options.strip.join));
     settle_with_contact(round + 1 < options.cast_rounds ? rough : options.settle);
   }
   // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
@@ -642,7 +685,8 @@ nlohmann::json attempt_header(const std::string& change, const DecomposeOptions&
   return {{"change", change},
           {"corner_twist_deg", options.placement.corner_twist_deg},
           {"even_perimeter", options.placement.even_perimeter},
-          {"contact_depth_min", options.contact_depth_min}};
+          {"contact_depth_min", options.contact_depth_min},
+          {"landmark_strip", options.strip.join}};
 }
 
 // One entry of the report's `attempts`: what the attempt changed and how its check came out.
@@ -691,6 +735,16 @@ std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const Decompose
     retry.retry_alternative = false;
     retry.landmark_twists_deg.clear();
   }
+  // Landmark strips that fail every try: the whole plan again with the landmark disks.
+  if (landmarks_given && options.strip.join && options.strip.disk_fallback) {
+    DecomposeOptions disks = options;
+    disks.strip.join = false;
+    auto first = disks;
+    first.retry_alternative = false;
+    first.landmark_twists_deg.clear();
+    plan.emplace_back("landmark_disks", first);
+    for (auto& [change, retry] : retry_plan(disks, true)) plan.emplace_back("landmark_disks_" + change, retry);
+  }
   return plan;
 }
 
@@ -701,9 +755,12 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
+  // Inverted cells of the first try of the current sequence (the strips', then the disks').
+  long first_inverted = best.report.quality.inverted_cells;
   for (const auto& [change, retry] : retry_plan(options, landmarks.given())) {
     if (best.report.quality.pass) break;
-    if (change == "alternative_placement" && best.report.quality.inverted_cells > options.retry_max_inverted_cells) {
+    if ((change == "alternative_placement" || change == "landmark_disks_alternative_placement") &&
+        first_inverted > options.retry_max_inverted_cells) {
       attempts.push_back({{"change", change},
                           {"status", "skipped"},
                           {"why", "the first result has more than retry_max_inverted_cells (" +
@@ -712,6 +769,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     }
     try {
       Decomposition d = decompose_attempt(muscle, landmarks, retry);
+      if (change == "landmark_disks") first_inverted = d.report.quality.inverted_cells;
       attempts.push_back(attempt_json(change, retry, d.report));
       seconds += d.report.seconds;
       if (better_result(d.report.quality, best.report.quality)) {

@@ -34,6 +34,7 @@
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
 #include "fibres/fibre_check.h"
+#include "fibres/landmark_strip.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
@@ -67,6 +68,9 @@ struct DecomposeOptions {
   RepairOptions repair;             ///< repair stage (defaults: repair/repair.h)
   SphereMapOptions sphere;          ///< muscle sphere map (default tutte)
   AttachmentOptions attachments;    ///< landmark tolerance, automatic end fraction
+  /// Landmark areas joined into gapless strips along their spanning tree before the placement,
+  /// the cast and the check (fibres/landmark_strip.h; default on, longest join 0.1 of the length).
+  StripOptions strip;
   PlacementOptions placement;       ///< regions and alignment on the sphere
   springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
   int fibres = 100;                 ///< fibres output, >= 4, split near-square (default 100)
@@ -170,7 +174,10 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 
 /// The retries of a decomposition that fails the check, in order, each with what it changes:
 /// "alternative_placement" (alternative_placement(), when options.retry_alternative), then with
-/// landmark areas one "corner_twist" per options.landmark_twists_deg entry. Retries do not retry.
+/// landmark areas one "corner_twist" per options.landmark_twists_deg entry; then, with landmark
+/// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
+/// the strips off) and the same plan again with the strips off, each change prefixed
+/// "landmark_disks_". Retries do not retry.
 std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer

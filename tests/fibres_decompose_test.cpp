@@ -247,7 +247,15 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   REQUIRE(automatic.size() == 1);
   CHECK(automatic[0].first == "alternative_placement");
   const auto given = retry_plan(options, true);
-  REQUIRE(given.size() == 3);
+  // The alternative and both twists with the landmark strips, then the first try and the same
+  // three with the landmark disks (StripOptions::disk_fallback).
+  REQUIRE(given.size() == 7);
+  CHECK(given[3].first == "landmark_disks");
+  CHECK(given[4].first == "landmark_disks_alternative_placement");
+  CHECK(given[6].first == "landmark_disks_corner_twist");
+  CHECK(given[6].second.placement.corner_twist_deg == 67.5);
+  CHECK(given[3].second.placement.corner_twist_deg == options.placement.corner_twist_deg);
+  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].second.strip.join == (i < 3));
   CHECK(given[1].first == "corner_twist");
   CHECK(given[1].second.placement.corner_twist_deg == 0.0);
   CHECK(given[2].second.placement.corner_twist_deg == 67.5);
@@ -259,6 +267,11 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   }
   options.retry_alternative = false;
   CHECK(retry_plan(options, false).empty());
+  CHECK(retry_plan(options, true).size() == 5);
+  options.strip.disk_fallback = false;
+  CHECK(retry_plan(options, true).size() == 2);
+  options.strip.disk_fallback = true;
+  options.strip.join = false;  // the disks from the start: nothing to fall back to
   CHECK(retry_plan(options, true).size() == 2);
 
   CheckReport pass, fail_one, fail_one_folded, fail_two;

@@ -1,0 +1,70 @@
+#pragma once
+/// \file landmark_strip.h
+/// Landmark areas joined into strips. Landmark files often mark an attachment along a bone crest
+/// by a row of points several region radii apart (LHDL: neighbours 2-15 mm apart, spanning-tree
+/// edges up to 30 mm, on muscles 173-330 mm long, where the region radius is 1 % of the length).
+/// The union of small disks round such points is a string of separate blobs: the placement's
+/// star radius from the region centre stops at the first gap, and the cast of the fibre ends
+/// shrinks the face until every end lies near one landmark, so the fibres start on a small part
+/// of the crest and leave the rest of the muscle uncovered. Joining the landmarks along their
+/// minimum spanning tree (edges no longer than `max_gap` of the muscle length) and sampling
+/// points along each join, projected onto the surface, turns the row into a gapless strip: the
+/// region, the face placed into it, the cast and the check's attachment distances then follow
+/// the whole crest. The check then measures the ends' distance to the strip, not to the nearest
+/// listed landmark (LHDL: ends within 1 % of the length of the strip lie up to 5.3 % from the
+/// nearest landmark, where the joins are long; docs/BENCHMARKS.md, "LHDL landmark strips").
+#include "geometry/mesh.h"
+#include "morph/attachments.h"
+#include "morph/surface_query.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace fascicle {
+
+/// Options of the joining of landmark areas.
+struct StripOptions {
+  /// Join the landmarks of each landmark area into a strip (default true; automatic areas are
+  /// never joined: they are already every vertex of an end).
+  bool join = true;
+  /// Longest join, as a fraction of the muscle length, in (0, 1] (default 0.1: every LHDL landmark
+  /// row joins into one strip; the longest minimum-spanning-tree edge there is 30 mm, between two
+  /// of the four psoas clouds, 0.092 of its 330 mm length). Longer gaps stay gaps.
+  double max_gap = 0.1;
+  /// Spacing of the points added along a join, as a fraction of the muscle length, in (0, 0.1]
+  /// (default 0.004: well under the region radius of 0.01, so that the disks round the points
+  /// overlap into a strip).
+  double step = 0.004;
+  /// When every try with the strips fails the check, the whole retry plan runs again with the
+  /// landmark disks (join off) and the best of all tries is kept (fibres/decompose.h,
+  /// retry_plan()), so that no result is worse than without the strips by better_result()
+  /// (default true; LHDL gluteus medius, rectus template: coverage p95 3.84 with the strips, 2.97
+  /// with the disks, both failing). Costs up to twice the tries on a muscle that keeps failing.
+  bool disk_fallback = true;
+  /// Areas with more points than this are left as they are (dense enough, and the spanning tree
+  /// costs the square of the count), >= 2 (default 4096).
+  int max_points = 4096;
+  /// Throws OptionError naming the first field out of range.
+  void validate() const;
+};
+
+/// What the joining did to one area.
+struct StripReport {
+  bool joined = false;      ///< false: the area was left as it was (off, one point, too many)
+  int landmarks = 0;        ///< points of the area before
+  int joins = 0;            ///< spanning-tree edges joined (at most landmarks - 1)
+  int gaps = 0;             ///< spanning-tree edges longer than max_gap, left open
+  long added = 0;           ///< points added along the joins
+  double longest_join = 0;  ///< longest joined edge, fraction of the muscle length
+  nlohmann::json to_json() const;
+};
+
+/// The area `area` (points on the surface `query` was built on) with its points joined: for each
+/// edge of the Euclidean minimum spanning tree of its points no longer than
+/// options.max_gap * `length`, points every options.step * `length` along the segment, each
+/// projected onto the closest surface point. The original points come first, unchanged; the
+/// area's source and max_distance are kept. Throws OptionError for bad options or a length that
+/// is not positive and finite.
+AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuery& query, double length,
+                                   const StripOptions& options = {}, StripReport* report = nullptr);
+
+}  // namespace fascicle
