@@ -21,7 +21,11 @@
 // all its springs) this halves the inverse square roots, which bound the model-26 iteration.
 // On model-26 lattices the three springs of a row into one target row (dx = -1, 0, +1) are
 // summed in registers before the push, so each target row gets one aligned read-modify-write
-// per vector instead of three overlapping unaligned ones (which stall store forwarding).
+// per vector instead of three overlapping unaligned ones (which stall store forwarding); the
+// dx = -1 springs are evaluated in the lane of their target, so only their force on the source
+// is shifted between lanes, once for the four groups. The rows of a tile with every spring run
+// their vectors without masks, and software prefetch brings the positions of the next plane's
+// rows and the previous positions ahead of the loads.
 //
 // This path needs AVX-512: a row is one loop written with intrinsics (fused_row_avx512: own
 // springs summed in registers, integration in the same pass) and takes 1 / sqrt from
@@ -46,12 +50,14 @@
 #define FASCICLE_HAVE_AVX512_KERNEL 1
 #endif
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 #include <utility>
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
@@ -244,20 +250,6 @@ struct FusedRow {
   bool integrate, write;
 };
 
-// 1 / sqrt(l2): VRSQRT14PD (relative error e0 below 2^-14), then one third-order step
-// y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2): relative
-// error below 5/16 e0^3, about 6e-13, plus rounding; five operations against seven for two
-// Newton steps. Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path).
-// Explicit FMAs; the library is compiled with -ffp-contract=off, so the same source gives the
-// same bits everywhere.
-__attribute__((target("avx512f"), always_inline)) inline __m512d inverse_sqrt(__m512d l2) {
-  // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
-  const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
-  const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
-  const __m512d g = _mm512_mul_pd(e, _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5)));
-  return _mm512_fmadd_pd(y0, g, y0);
-}
-
 // Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
 // ones are slower on some processors, measured on this one).
 __attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 m, const double* p) {
@@ -268,75 +260,178 @@ __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m,
   else _mm512_mask_storeu_pd(p, m, v);
 }
 
+// The springs from the 8 points s (lanes) to the points at index q of the position arrays x,
+// the one spring evaluation of both models: sets l = x[q] - s and returns w = k - 1 / |l| (the
+// force is w l). Lanes outside m (when Masked) get l = 0 and w = 0: no force.
+// 1 / |l| is y0 = VRSQRT14PD(l2) (relative error e0 below 2^-14) refined by one third-order
+// step y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2):
+// relative error below 5/16 e0^3, about 6e-13, plus rounding. It is folded into w as
+// (k - y0) - (y0 e)(1/2 + 3/8 e), whose longest chain is two operations shorter than y's.
+// Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path). Explicit FMAs; the
+// library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
+template <bool Masked>
+__attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(__mmask8 m, const double* const x[3],
+                                                                               long q, const __m512d s[3],
+                                                                               __m512d k, __m512d l[3]) {
+  for (int c = 0; c < 3; ++c)
+    l[c] = Masked ? _mm512_maskz_sub_pd(m, load8(m, x[c] + q), s[c]) : _mm512_sub_pd(_mm512_loadu_pd(x[c] + q), s[c]);
+  const __m512d l2 = _mm512_fmadd_pd(l[2], l[2], _mm512_fmadd_pd(l[1], l[1], _mm512_mul_pd(l[0], l[0])));
+  // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
+  const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
+  const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
+  const __m512d ye = _mm512_mul_pd(y0, e);
+  const __m512d g = _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5));
+  const __m512d ky = _mm512_sub_pd(k, y0);
+  return Masked ? _mm512_maskz_fnmadd_pd(m, ye, g, ky) : _mm512_fnmadd_pd(ye, g, ky);  // 0 without a spring
+}
+
 template <int Directions>
 __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedRow& given, double* power) {
   // A local copy: vector stores may alias anything, so fields read through a reference would be
   // reloaded after every store.
   const FusedRow r = given;
   const long nx = r.nx;
-  const double *x0 = r.x[0], *x1 = r.x[1], *x2 = r.x[2];
+  const double* const x[3] = {r.x[0], r.x[1], r.x[2]};
   __m512d carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  __m512d minus_carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
   __m512d group_carry[4][3];
   for (auto& g : group_carry)
     for (auto& c : g) c = _mm512_setzero_pd();
   __m512i largest = _mm512_setzero_si512();
   __m512d fv = _mm512_setzero_pd();
-  for (long i = 0; i < nx; i += 8) {
+  // Model-26 rows with every spring and every push (all but the rows at the lattice's faces
+  // and around the tile) run their vectors but the last (i + 8 < nx: every lane's springs
+  // exist, see below) through a copy of the loop body without masks or per-direction tests.
+  // The operations are the same (a full mask), so are the bits: which copy runs depends on
+  // the tile, the result must not.
+  bool full = Directions == kMaxDirections && r.integrate && r.along_x >= 0;
+  bool arrays = false;  // per-point stiffness
+  long group_offset[4][3] = {};
+  const double* group_k[4][3] = {};
+  double group_ku[4][3] = {};
+  if (Directions == kMaxDirections) {
+    for (int g = 0; g < 4; ++g) {
+      full = full && r.group_push[g][0];
+      for (int s = 0; s < 3; ++s) {
+        const int d = r.group[g][s];
+        full = full && r.valid[d];
+        arrays = arrays || r.k[d];
+        group_offset[g][s] = r.offset[d];
+        group_k[g][s] = r.k[d];
+        group_ku[g][s] = r.ku[d];
+      }
+    }
+    if (r.along_x >= 0) arrays = arrays || r.k[r.along_x];
+  }
+  // Software prefetch, one line per array and vector: the positions two rows on from the
+  // farthest target row (the next rows' targets in the next plane, read here from memory for
+  // the first time in the iteration) and the next row's previous positions. The hardware
+  // prefetcher alone left the 100^3 model-26 row waiting for memory (about a fifth of its
+  // time, measured on one thread with and without).
+  long ahead = 0;
+  for (int d = 0; d < r.directions; ++d) ahead = std::max(ahead, r.offset[d]);
+  ahead += 2 * nx;
+  const long along_offset = r.along_x >= 0 ? r.offset[r.along_x] : 0;
+  const double* const along_k = r.along_x >= 0 ? r.k[r.along_x] : nullptr;
+  const double along_ku = r.along_x >= 0 ? r.ku[r.along_x] : 0.0;
+  // One vector of 8 points from i. Kind: 0 the checked body, 1 a vector of a full row (see
+  // above) with uniform stiffness, 2 the same with per-point stiffness.
+  auto vector = [&](long i, auto kind) __attribute__((target("avx512f"), always_inline)) {
+    constexpr int Kind = decltype(kind)::value;
     const long left = nx - i;
     const __mmask8 row_mask = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
-    const __m512d sx = load8(row_mask, x0 + i);
-    const __m512d sy = load8(row_mask, x1 + i);
-    const __m512d sz = load8(row_mask, x2 + i);
+    const __m512d s[3] = {load8(row_mask, x[0] + i), load8(row_mask, x[1] + i), load8(row_mask, x[2] + i)};
+    for (int c = 0; c < 3; ++c) {
+      _mm_prefetch(reinterpret_cast<const char*>(x[c] + i + ahead), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(r.p[c] + i + nx), _MM_HINT_T0);
+    }
     __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
     __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
-    // One spring direction: its force f = w l (zero in lanes without a spring) added to the
-    // own point's sum; returned in f.
-    auto spring = [&](int d, __m512d f[3]) __attribute__((target("avx512f"), always_inline)) {
-      // Lanes whose target exists: i + dx in [0, nx).
-      __mmask8 m = row_mask;
-      if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
-      if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
-      const long q = i + r.offset[d];
-      const __m512d lx = _mm512_maskz_sub_pd(m, load8(m, x0 + q), sx);
-      const __m512d ly = _mm512_maskz_sub_pd(m, load8(m, x1 + q), sy);
-      const __m512d lz = _mm512_maskz_sub_pd(m, load8(m, x2 + q), sz);
-      const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
-      const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
-      const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
-      f[0] = _mm512_mul_pd(w, lx);
-      f[1] = _mm512_mul_pd(w, ly);
-      f[2] = _mm512_mul_pd(w, lz);
-      for (int c = 0; c < 3; ++c) own[c] = _mm512_add_pd(own[c], f[c]);
+    // Model-26: the springs of direction d evaluated from the source points at i + shift
+    // (0 or 1; see below) in the lanes where `valid` and their target exists. Sets l, returns w.
+    auto spring = [&](int d, bool valid, long shift, const __m512d from[3], __m512d l[3])
+                      __attribute__((target("avx512f"), always_inline)) {
+      if constexpr (Kind == 0) {
+        // Lanes whose source (i + shift + lane) and target (one more for dx = +1, one less for
+        // dx = -1) exist.
+        const long source_left = left - shift;
+        __mmask8 m = source_left >= 8 ? static_cast<__mmask8>(0xFF)
+                                      : static_cast<__mmask8>(source_left > 0 ? (1u << source_left) - 1u : 0u);
+        if (r.dx[d] > 0 && source_left <= 8) m &= static_cast<__mmask8>(m >> 1);
+        if (r.dx[d] < 0 && i + shift == 0) m &= static_cast<__mmask8>(0xFE);
+        if (!valid) m = 0;
+        const __m512d k = r.k[d] ? load8(m, r.k[d] + i + shift) : _mm512_set1_pd(r.ku[d]);
+        return spring_weight<true>(m, x, i + shift + r.offset[d], from, k, l);
+      } else {
+        (void)valid;
+        const int g = d >> 2, slot = d & 3;  // d: 4 g + slot, 15 the along-x direction
+        const long offset = d == 15 ? along_offset : group_offset[g][slot];
+        const double* ka = d == 15 ? along_k : group_k[g][slot];
+        const double ku = d == 15 ? along_ku : group_ku[g][slot];
+        const __m512d k = Kind == 2 ? _mm512_loadu_pd(ka + i + shift) : _mm512_set1_pd(ku);
+        return spring_weight<false>(0xFF, x, i + shift + offset, from, k, l);
+      }
     };
     if constexpr (Directions == kMaxDirections) {
-      // Model-26. The three directions of a group push into one target row at i - 1, i and
-      // i + 1: summed in registers first (dx = +1 shifted one lane up with a carry into the next
-      // vector, dx = -1 one lane down, its lane 0 going to the previous vector's last point),
-      // so each group makes one aligned read-modify-write of the target per vector. Pushing the
-      // three directions one by one made overlapping unaligned stores and loads of the same
-      // lines, which the processor cannot forward: that stall bounded the model-26 row.
-      // (A row around the tile, not integrated, needs no along-x springs: they push nowhere.)
-      if (r.along_x >= 0) spring(r.along_x, along);
+      // Model-26. The three directions of a group push into one target row: its springs are
+      // summed in registers and the sum pushed with one aligned read-modify-write of the target
+      // per vector (pushing them one by one made overlapping unaligned stores and loads of the
+      // same lines, which the processor cannot forward). dx = 0: source and target in the same
+      // lane. dx = +1: the force shifted one lane up to its target, the last lane carried into
+      // the next vector. dx = -1: evaluated from the sources one point on (i + 1), so in the
+      // lane of its target; its force on the source is what is shifted up, summed over the four
+      // groups first (`minus`). (A row around the tile, not integrated, needs no along-x
+      // springs, which push nowhere, nor the groups whose target row is outside the tile.)
+      // Kind 0 numbers the directions by r.group, the other kinds by 4 g + slot.
+      const __mmask8 next_mask = Kind == 0 && left <= 8 ? static_cast<__mmask8>(row_mask >> 1)
+                                                         : static_cast<__mmask8>(0xFF);
+      __m512d next[3];  // the sources of the dx = -1 springs
+      for (int c = 0; c < 3; ++c)
+        next[c] = Kind == 0 ? load8(next_mask, x[c] + i + 1) : _mm512_loadu_pd(x[c] + i + 1);
+      __m512d own_up[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};  // dx = +1
+      __m512d minus[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};   // dx = -1
+      if (Kind != 0 || r.along_x >= 0) {
+        __m512d l[3];
+        const __m512d w = spring(Kind == 0 ? r.along_x : 15, true, 0, s, l);
+        for (int c = 0; c < 3; ++c) {
+          along[c] = _mm512_mul_pd(w, l[c]);
+          own[c] = _mm512_add_pd(own[c], along[c]);
+        }
+      }
 #pragma GCC unroll 4
       for (int g = 0; g < 4; ++g) {
-        __m512d fm[3], f0[3], fp[3];
-        const __m512d zero = _mm512_setzero_pd();
-        for (int c = 0; c < 3; ++c) fm[c] = f0[c] = fp[c] = zero;
-        if (r.valid[r.group[g][0]]) spring(r.group[g][0], fm);
-        if (r.valid[r.group[g][1]]) spring(r.group[g][1], f0);
-        if (r.valid[r.group[g][2]]) spring(r.group[g][2], fp);
-        if (!r.group_push[g][0]) continue;
+        if (Kind == 0 && !r.integrate && !r.group_push[g][0]) continue;
+        const int dm = Kind == 0 ? r.group[g][0] : 4 * g;
+        const int d0 = Kind == 0 ? r.group[g][1] : 4 * g + 1;
+        const int dp = Kind == 0 ? r.group[g][2] : 4 * g + 2;
+        __m512d lm[3], l0[3], lp[3];
+        const __m512d wm = spring(dm, Kind != 0 || r.valid[dm], 1, next, lm);
+        const __m512d w0 = spring(d0, Kind != 0 || r.valid[d0], 0, s, l0);
+        const __m512d wp = spring(dp, Kind != 0 || r.valid[dp], 0, s, lp);
+        const bool push = Kind != 0 || r.group_push[g][0];
         for (int c = 0; c < 3; ++c) {
+          const __m512d f0 = _mm512_mul_pd(w0, l0[c]);
+          const __m512d fp = _mm512_mul_pd(wp, lp[c]);
+          own[c] = _mm512_add_pd(own[c], f0);
+          own_up[c] = _mm512_add_pd(own_up[c], fp);
+          minus[c] = _mm512_fmadd_pd(wm, lm[c], minus[c]);
+          if (!push) continue;
           const __m512d up = _mm512_castsi512_pd(
-              _mm512_alignr_epi64(_mm512_castpd_si512(fp[c]), _mm512_castpd_si512(group_carry[g][c]), 7));
-          const __m512d down = _mm512_castsi512_pd(
-              _mm512_alignr_epi64(_mm512_castpd_si512(zero), _mm512_castpd_si512(fm[c]), 1));
-          group_carry[g][c] = fp[c];
+              _mm512_alignr_epi64(_mm512_castpd_si512(fp), _mm512_castpd_si512(group_carry[g][c]), 7));
+          group_carry[g][c] = fp;
+          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_add_pd(f0, up));
           double* target = r.group_push[g][c] + i;
-          const __m512d sum = _mm512_add_pd(_mm512_add_pd(f0[c], up), down);
-          store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
-          if (i > 0) target[-1] -= _mm512_cvtsd_f64(fm[c]);
+          if (Kind == 0) store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
+          else _mm512_storeu_pd(target, _mm512_sub_pd(_mm512_loadu_pd(target), sum));
         }
+      }
+      // own = along and dx = 0 + dx = +1 + dx = -1 (shifted up: the previous vector's last lane
+      // coming in at lane 0)
+      for (int c = 0; c < 3; ++c) {
+        const __m512d minus_up = _mm512_castsi512_pd(
+            _mm512_alignr_epi64(_mm512_castpd_si512(minus[c]), _mm512_castpd_si512(minus_carry[c]), 7));
+        minus_carry[c] = minus[c];
+        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), minus_up);
       }
     } else {
 #pragma GCC unroll 13
@@ -346,14 +441,9 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
       __mmask8 m = row_mask;
       if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
       if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
-      const long q = i + r.offset[d];
-      const __m512d lx = _mm512_maskz_sub_pd(m, load8(m, x0 + q), sx);
-      const __m512d ly = _mm512_maskz_sub_pd(m, load8(m, x1 + q), sy);
-      const __m512d lz = _mm512_maskz_sub_pd(m, load8(m, x2 + q), sz);
-      const __m512d l2 = _mm512_fmadd_pd(lz, lz, _mm512_fmadd_pd(ly, ly, _mm512_mul_pd(lx, lx)));
       const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
-      const __m512d w = _mm512_maskz_sub_pd(m, k, inverse_sqrt(l2));  // 0 without a spring (l2 = 0 there)
-      const __m512d l[3] = {lx, ly, lz};
+      __m512d l[3];
+      const __m512d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
       if (d == r.along_x) {
         for (int c = 0; c < 3; ++c) {
           along[c] = _mm512_mul_pd(w, l[c]);
@@ -371,7 +461,7 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
       }
     }
     }
-    if (!r.integrate) continue;
+    if (!r.integrate) return;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
     // lane coming in at lane 0.
     __m512d force[3];
@@ -389,20 +479,28 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
     const __m512d f2 = _mm512_fmadd_pd(force[2], force[2],
                                        _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
     largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
-    const __m512d vx = _mm512_sub_pd(sx, load8(row_mask, r.p[0] + i));
-    const __m512d vy = _mm512_sub_pd(sy, load8(row_mask, r.p[1] + i));
-    const __m512d vz = _mm512_sub_pd(sz, load8(row_mask, r.p[2] + i));
-    const __m512d pv = _mm512_fmadd_pd(force[2], vz, _mm512_fmadd_pd(force[1], vy, _mm512_mul_pd(force[0], vx)));
+    __m512d v[3];
+    for (int c = 0; c < 3; ++c) v[c] = _mm512_sub_pd(s[c], load8(row_mask, r.p[c] + i));
+    const __m512d pv = _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
     fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
-    if (!r.write) continue;
+    if (!r.write) return;
     const __m512d a = r.a ? load8(row_mask, r.a + i) : _mm512_set1_pd(r.au);
     const __m512d b = r.b ? load8(row_mask, r.b + i) : _mm512_set1_pd(r.bu);
-    const __m512d v[3] = {vx, vy, vz}, s[3] = {sx, sy, sz};
     for (int c = 0; c < 3; ++c) {
       // fixed points: x_new = x; free: x + b v + a f
       const __m512d moved = _mm512_fmadd_pd(a, force[c], _mm512_fmadd_pd(b, v[c], s[c]));
       store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
     }
+  };
+  for (long i = 0; i < nx; i += 8) {
+    if constexpr (Directions == kMaxDirections) {
+      if (full && i + 8 < nx) {
+        if (arrays) vector(i, std::integral_constant<int, 2>());
+        else vector(i, std::integral_constant<int, 1>());
+        continue;
+      }
+    }
+    vector(i, std::integral_constant<int, 0>());
   }
   alignas(64) double lanes[8];
   _mm512_store_pd(lanes, fv);
@@ -435,7 +533,9 @@ struct Ring {
     }
   }
   // Row r = j + ny k of the lattice.
-  double* row(int c, long r) { return f[c].data() + (((r / ny) & 1) * ny + r % ny) * nx; }
+  double* row(int c, long r) { return f[c].data() + start(r % ny, r / ny); }
+  // Where row (j, k) starts in each f (no division: fused_row asks for about 40 a row).
+  long start(long j, long k) const { return ((k & 1) * ny + j) * nx; }
   void zero(long r) {
     for (int c = 0; c < 3; ++c) std::memset(row(c, r), 0, sizeof(double) * static_cast<std::size_t>(nx));
   }
@@ -623,13 +723,12 @@ class StructuredVerlet final : public SpringSolver {
     for (int c = 0; c < 3; ++c) {
       f.x[c] = x_[c].data() + base;
       f.p[c] = p_[c].data() + base;
-      f.ring[c] = ring.row(c, r);
+      f.ring[c] = ring.f[c].data() + ring.start(j, k);
     }
     f.directions = directions_;
     f.along_x = -1;
     for (int d = 0; d < directions_; ++d) {
       const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
-      const long target = r + dy + ny * dz;
       f.valid[d] = j + dy >= 0 && j + dy < ny && k + dz < nz && nx > (dx != 0 ? 1 : 0) && (!forward_only || dz == 1);
       f.dx[d] = dx;
       f.offset[d] = offset_[d];
@@ -638,7 +737,8 @@ class StructuredVerlet final : public SpringSolver {
       const bool along_x = dx == 1 && dy == 0 && dz == 0;
       if (along_x && f.valid[d] && integrate) f.along_x = d;
       const bool push = f.valid[d] && !along_x && tile.holds(j + dy, k + dz);
-      for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.row(c, target) : nullptr;
+      const long target = push ? ring.start(j + dy, k + dz) : 0;
+      for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.f[c].data() + target : nullptr;
     }
     if (directions_ == kMaxDirections) {
       // Groups of one target row (dy, dz), slots by dx + 1.
