@@ -562,6 +562,21 @@ class StructuredVerlet final : public SpringSolver {
       dir_[d] = dirs[d];
       offset_[d] = dirs[d][0] + static_cast<long>(shape.nx) * (dirs[d][1] + static_cast<long>(shape.ny) * dirs[d][2]);
     }
+    if (directions_ == kMaxDirections) {
+      // Model-26: the 12 directions off the row in groups of one target row (dy, dz), slots by
+      // dx + 1 (fused_row).
+      int groups = 0;
+      long key[4];
+      for (int d = 0; d < directions_; ++d) {
+        const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
+        if (dy == 0 && dz == 0) continue;  // along x
+        const long kd = dy + 3L * dz;
+        int g = 0;
+        while (g < groups && key[g] != kd) ++g;
+        if (g == groups) key[groups++] = kd;
+        group_[g][dx + 1] = d;
+      }
+    }
     for (int c = 0; c < 3; ++c) {
       x_[c].resize(n_);
       p_[c].resize(n_);
@@ -741,20 +756,9 @@ class StructuredVerlet final : public SpringSolver {
       for (int c = 0; c < 3; ++c) f.push[d][c] = push ? ring.f[c].data() + target : nullptr;
     }
     if (directions_ == kMaxDirections) {
-      // Groups of one target row (dy, dz), slots by dx + 1.
-      int groups = 0;
-      long key[4];
-      for (int d = 0; d < directions_; ++d) {
-        const int dx = dir_[d][0], dy = dir_[d][1], dz = dir_[d][2];
-        if (dy == 0 && dz == 0) continue;  // along x
-        const long kd = dy + 3L * dz;
-        int g = 0;
-        while (g < groups && key[g] != kd) ++g;
-        if (g == groups) key[groups++] = kd;
-        f.group[g][dx + 1] = d;
-        if (dx == 0)  // (dx = +-1 are not valid in a row of one point)
-          for (int c = 0; c < 3; ++c) f.group_push[g][c] = f.push[d][c];
-      }
+      std::memcpy(f.group, group_, sizeof group_);
+      for (int g = 0; g < 4; ++g)  // the push of dx = 0 (dx = +-1 are not valid in a row of one point)
+        for (int c = 0; c < 3; ++c) f.group_push[g][c] = f.push[group_[g][1]][c];
     }
     f.a = uniform_ab_ ? nullptr : coefficients_.a.data() + base;
     f.b = uniform_ab_ ? nullptr : coefficients_.b.data() + base;
@@ -926,6 +930,7 @@ class StructuredVerlet final : public SpringSolver {
   int directions_ = 0, iteration_ = 0;
   std::array<int, 3> dir_[kMaxDirections];
   long offset_[kMaxDirections] = {};
+  int group_[4][3] = {};  // model-26: FusedRow::group
   double k_uniform_[kMaxDirections] = {};
   bool uniform_k_ = false, uniform_ab_ = false;
   std::vector<double> x_[3], p_[3];
