@@ -170,6 +170,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--cast-rounds", o.cast_rounds,
                   "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
       ->capture_default_str();
+  cmd->add_option("--cast-rim", o.cast_rim,
+                  "Cast the rim of each attachment face with its fibre ends (true) or leave it where the placement "
+                  "put it (false)")
+      ->capture_default_str();
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();

@@ -86,6 +86,10 @@ struct DecomposeOptions {
   int cast_rounds = 2;          ///< rounds of "fibre ends cast onto the surface under the layer
                                 ///< next to them, settle again" (step 6b), >= 0 (default 2;
                                 ///< 0: the ends stay where the sphere maps place them)
+  /// Cast the rim of each attachment face (its surface-ring points) with its fibre ends, from
+  /// the same layer or fit one index step beyond them (default true; false: the rim stays where
+  /// the placement put it, which next to a narrow end can lie inside the cast ends).
+  bool cast_rim = true;
   int soft_contact_rounds = 3;  ///< of the containment rounds, the first ones anchor outside points
                                 ///< by zero-length springs to targets just inside (4x stiffer each
                                 ///< round) instead of fixing them, >= 0 (default 3)
@@ -173,7 +177,8 @@ struct Decomposition {
 DecomposeOptions alternative_placement(const DecomposeOptions& options);
 
 /// The retries of a decomposition that fails the check, in order, each with what it changes:
-/// "alternative_placement" (alternative_placement(), when options.retry_alternative), then with
+/// "alternative_placement" (alternative_placement(), when options.retry_alternative), then
+/// "rim_left" (options with cast_rim false, when options.retry_alternative and cast_rim), then with
 /// landmark areas one "corner_twist" per options.landmark_twists_deg entry; then, with landmark
 /// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
 /// the strips off) and the same plan again with the strips off, each change prefixed
@@ -201,7 +206,7 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
 
 /// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; while the result
 /// fails the check, again with each of retry_plan()'s options in turn (the alternative placement,
-/// then, with landmark areas, the corner twists of options.landmark_twists_deg), keeping the best
+/// the face rims left, then, with landmark areas, the corner twists of options.landmark_twists_deg), keeping the best
 /// result by better_result() (the report's `attempts` lists every try, `kept_attempt` the one
 /// returned). Throws as decompose(); an exception in a retry (not the first attempt) is recorded
 /// in `attempts` and that retry skipped.

@@ -48,31 +48,42 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
     // The retries: none after a pass; after a failure the second try runs unless the first
     // result has more than retry_max_inverted_cells (50) inverted cells, and is then listed as
-    // skipped; the kept attempt's figures are the report's.
+    // skipped; unless that passes, the third (face rims left where the placement put them)
+    // runs; the kept attempt's figures are the report's.
     const auto& attempts = r["attempts"];
     REQUIRE(attempts.size() >= 1);
     CHECK(attempts[0]["change"] == "none");
     if (attempts[0]["status"] == "ok") CHECK(attempts.size() == 1);
     else {
-      REQUIRE(attempts.size() == 2);
+      REQUIRE(attempts.size() >= 2);
       CHECK(attempts[1]["change"] == "alternative_placement");
       if (attempts[0]["inverted_cells"].get<long>() > 50) CHECK(attempts[1]["status"] == "skipped");
       else CHECK(attempts[1]["status"] != "skipped");
+      if (attempts[1]["status"] == "ok") CHECK(attempts.size() == 2);
+      else {
+        REQUIRE(attempts.size() == 3);
+        CHECK(attempts[2]["change"] == "rim_left");
+        CHECK(attempts[2]["status"] != "skipped");
+      }
     }
     const auto& kept = attempts[r["kept_attempt"].get<std::size_t>()];
     CHECK(kept["inverted_cells"] == q["inverted_cells"]);
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Measured on 2026-11-21 22:06-22:08 UTC (docs/BENCHMARKS.md,
-  // "Decompose"): 40 of 47 pass every criterion, 41 have no inverted cell, 46 have coverage p95
+  // Floors, not the goal (every muscle). Measured on 2026-11-22 00:53-01:06 UTC (docs/BENCHMARKS.md,
+  // "Decompose", "Face rims cast with the fibre ends"): 44 of 47 pass every criterion, 44 have no
+  // inverted cell, 47 have coverage p95 <= 2, 642 inverted cells in all (LHDL psoas 196, opendihu
+  // biceps tracer 135, left biceps 311; the left biceps's first try varied between 199 and 313
+  // inverted cells from run to run). Before the rims were cast (2026-11-21 22:06-22:08 UTC):
+  // 40 of 47 pass every criterion, 41 have no inverted cell, 46 have coverage p95
   // <= 2, 771 inverted cells in all (ends cast so that they turn the lattice's way, a second try
   // with the alternative placement for a muscle that fails with at most 50 inverted cells; with
   // the second try for every failing muscle 713, 21:15 UTC, for 18 s more batch wall time); at
   // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below each (the total:
   // about 4 % above), for a different processor's rounding.
-  CHECK(passed >= 39);
-  CHECK(unfolded >= 40);
-  CHECK(covered >= 45);
-  CHECK(inverted <= 800);
+  CHECK(passed >= 43);
+  CHECK(unfolded >= 43);
+  CHECK(covered >= 46);
+  CHECK(inverted <= 670);
 }

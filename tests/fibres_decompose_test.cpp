@@ -223,15 +223,18 @@ TEST_CASE("a decomposition that fails the check is tried again with the alternat
   CHECK_FALSE(twice.report.quality.pass);
   const nlohmann::json attempts = twice.report.to_json()["attempts"];
   INFO(attempts.dump());
-  REQUIRE(attempts.size() == 2);
+  REQUIRE(attempts.size() == 3);
   CHECK(attempts[0]["change"] == "none");
   CHECK(attempts[0]["status"] == "failed");
   CHECK(attempts[1]["change"] == "alternative_placement");
   CHECK(attempts[1]["even_perimeter"] == alternative.placement.even_perimeter);
   CHECK(attempts[1]["status"] == "failed");
+  CHECK(attempts[2]["change"] == "rim_left");
+  CHECK(attempts[2]["status"] == "failed");
   const int kept = twice.report.kept_attempt;
-  REQUIRE((kept == 0 || kept == 1));
-  CHECK(attempts[kept]["inverted_cells"].get<long>() <= attempts[1 - kept]["inverted_cells"].get<long>());
+  REQUIRE((kept >= 0 && kept <= 2));
+  for (int other = 0; other < 3; ++other)
+    CHECK(attempts[kept]["inverted_cells"].get<long>() <= attempts[other]["inverted_cells"].get<long>());
   CHECK(attempts[kept]["coverage_p95"].get<double>() == twice.report.quality.coverage.p95);
   CHECK(twice.report.placement.is_object());
   options.retry_alternative = false;
@@ -244,27 +247,37 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   DecomposeOptions options;
   options.landmark_twists_deg = {0.0, 67.5};
   const auto automatic = retry_plan(options, false);
-  REQUIRE(automatic.size() == 1);
+  REQUIRE(automatic.size() == 2);
   CHECK(automatic[0].first == "alternative_placement");
+  CHECK(automatic[0].second.cast_rim);
+  CHECK(automatic[1].first == "rim_left");
+  CHECK_FALSE(automatic[1].second.cast_rim);
+  CHECK(automatic[1].second.placement.even_perimeter == options.placement.even_perimeter);
   const auto given = retry_plan(options, true);
-  // The alternative and both twists with the landmark strips, then the first try and the same
-  // three with the landmark disks (StripOptions::disk_fallback).
-  REQUIRE(given.size() == 7);
-  CHECK(given[3].first == "landmark_disks");
-  CHECK(given[4].first == "landmark_disks_alternative_placement");
-  CHECK(given[6].first == "landmark_disks_corner_twist");
-  CHECK(given[6].second.placement.corner_twist_deg == 67.5);
-  CHECK(given[3].second.placement.corner_twist_deg == options.placement.corner_twist_deg);
-  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].second.strip.join == (i < 3));
-  CHECK(given[1].first == "corner_twist");
-  CHECK(given[1].second.placement.corner_twist_deg == 0.0);
-  CHECK(given[2].second.placement.corner_twist_deg == 67.5);
-  CHECK(given[2].second.placement.even_perimeter == options.placement.even_perimeter);
+  // With the landmark strips: the alternative, the rims left and both twists; then the first try
+  // and the same four with the landmark disks (StripOptions::disk_fallback).
+  REQUIRE(given.size() == 9);
+  CHECK(given[1].first == "rim_left");
+  CHECK(given[2].first == "corner_twist");
+  CHECK(given[2].second.placement.corner_twist_deg == 0.0);
+  CHECK(given[2].second.cast_rim);
+  CHECK(given[3].second.placement.corner_twist_deg == 67.5);
+  CHECK(given[3].second.placement.even_perimeter == options.placement.even_perimeter);
+  CHECK(given[4].first == "landmark_disks");
+  CHECK(given[4].second.placement.corner_twist_deg == options.placement.corner_twist_deg);
+  CHECK(given[5].first == "landmark_disks_alternative_placement");
+  CHECK(given[6].first == "landmark_disks_rim_left");
+  CHECK_FALSE(given[6].second.cast_rim);
+  CHECK(given[8].first == "landmark_disks_corner_twist");
+  CHECK(given[8].second.placement.corner_twist_deg == 67.5);
+  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].second.strip.join == (i < 4));
   for (const auto& [change, retry] : given) {
     CHECK_FALSE(retry.retry_alternative);
     CHECK(retry.landmark_twists_deg.empty());
     CHECK_NOTHROW(retry.validate());
   }
+  options.cast_rim = false;
+  CHECK(retry_plan(options, false).size() == 1);
   options.retry_alternative = false;
   CHECK(retry_plan(options, false).empty());
   CHECK(retry_plan(options, true).size() == 5);

@@ -1,0 +1,56 @@
+// Fibre ends next to a narrow tendon end (decompose step 6, `cast_faces` in fibres/decompose.cpp):
+// the rim of each attachment face is cast with its fibre ends. The placement's depth rule can
+// shrink a face to a few percent of its region (VHF psoas: 6 % and 9 %); a rim left there lies
+// inside the cast fibre ends and the cells between them fold, which the untangling with the ends
+// held cannot open (VHF psoas: 72 inverted cells with the rim left, 0 with it cast; measured
+// 2026-11-22, docs/BENCHMARKS.md, "Decompose", "Face rims cast with the fibre ends").
+#include "tests/test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+
+using namespace fascicle;
+
+namespace {
+
+nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir, const std::string& extra) {
+  const std::string report = out_dir + "/m.json";
+  const int code = test::run_command(test::program() + " -q decompose " + muscle + " -o " + out_dir +
+                                     "/m.vtk --report " + report + " --keep-failed --retry false " + extra +
+                                     " 2>/dev/null");
+  INFO(muscle << " " << extra);
+  CHECK((code == 0 || code == 19));
+  std::ifstream in(report);
+  REQUIRE(in.good());
+  return nlohmann::json::parse(in);
+}
+
+}  // namespace
+
+TEST_CASE("a psoas's narrow ends: face rims cast with the fibre ends leave no folded cell",
+          "[fibres][decompose][corpus][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  const std::string muscle = test::data_dir() + "/muscles/visible-human/VHF_Left/VHF_Left_Muscle_PsoasMajor_smooth.stl";
+  test::TempDir with_dir, without_dir;
+  const nlohmann::json with = decompose_report(muscle, with_dir.path().string(), "");
+  const nlohmann::json without = decompose_report(muscle, without_dir.path().string(), "--cast-rim false");
+  INFO(with["settle"]["cast_faces"].dump());
+  // Both faces are shrunk by the depth rule, far below their regions.
+  CHECK(with["placement"]["face_scale"][0].get<double>() < 0.2);
+  CHECK(with["placement"]["face_scale"][1].get<double>() < 0.2);
+  // Every cast round casts both rims; without them the end layers fold.
+  for (const auto& round : with["settle"]["cast_faces"])
+    for (const auto& face : round) {
+      CHECK(face["cast"] == true);
+      CHECK(face["rim"] == true);
+    }
+  for (const auto& round : without["settle"]["cast_faces"])
+    for (const auto& face : round) CHECK(face["rim"] == false);
+  CHECK(without["quality"]["inverted_cells"].get<long>() > 0);
+  CHECK(with["quality"]["inverted_cells"].get<long>() == 0);
+  CHECK(with["status"] == "ok");
+  CHECK(with["quality"]["inside_fraction"].get<double>() == 1.0);
+  CHECK(with["quality"]["coverage"]["p95"].get<double>() <= 2.0);
+}
