@@ -7,6 +7,7 @@
 #include "app/commands.h"
 #include "app/report_file.h"
 #include "fibres/fibre_check.h"
+#include "fibres/landmark_strip.h"
 #include "geometry/atomic_file.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
@@ -29,6 +30,7 @@ struct CheckArgs {
   bool json = false, strict = false;
   CheckOptions options;
   AttachmentOptions attachments;
+  StripOptions strip;  ///< landmark areas joined into strips, as `fascicle decompose` does (default on)
 };
 
 /// The soup as a triangle mesh when every polygon is a triangle, else nullopt.
@@ -46,6 +48,7 @@ bool as_triangle_mesh(const PolygonSoup& soup, TriangleMesh& mesh) {
 void run_check(const CheckArgs& args) {
   args.options.validate();
   args.attachments.validate();
+  args.strip.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
   if (!args.report.empty()) {
@@ -64,12 +67,21 @@ void run_check(const CheckArgs& args) {
     muscle = std::move(result.mesh);
     spdlog::info("repaired {}: {} vertices, {} triangles", args.muscle, muscle.positions.size(), muscle.triangles.size());
   }
-  const Attachments areas =
+  Attachments areas =
       args.origin.empty()
           ? automatic_attachments(muscle, args.attachments)
           : landmark_attachments(muscle, read_points(args.origin), args.origin, read_points(args.insertion),
                                  args.insertion, args.attachments);
-  const CheckReport report = check_fibres(fibres, muscle, areas, args.options);
+  // Landmark areas are measured as `fascicle decompose` measures them: joined into strips along
+  // their spanning tree (fibres/landmark_strip.h), unless --landmark-strip false.
+  const SurfaceQuery query(muscle);
+  const bool strips = !args.origin.empty() && args.strip.join;
+  if (strips) {
+    const double length = muscle_length(muscle);
+    areas.origin = join_landmark_strip(areas.origin, query, length, args.strip);
+    areas.insertion = join_landmark_strip(areas.insertion, query, length, args.strip);
+  }
+  const CheckReport report = check_fibres(fibres, muscle, query, areas, args.options);
 
   nlohmann::json json = report.to_json();
   json["fibres_file"] = args.fibres;
@@ -77,7 +89,8 @@ void run_check(const CheckArgs& args) {
   json["muscle_repaired"] = repaired;
   json["areas"] = {{"origin", areas.origin.source},
                    {"insertion", areas.insertion.source},
-                   {"automatic", areas.automatic}};
+                   {"automatic", areas.automatic},
+                   {"landmark_strip", strips}};
   if (!args.report.empty()) write_json_report(args.report, json);
   if (args.json) {
     const std::string text = json.dump(2);
@@ -114,6 +127,13 @@ void add_check_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-landmark-distance", args->attachments.max_landmark_distance,
                   "Landmarks farther from the surface than this fraction of the diagonal are an error")
+      ->capture_default_str();
+  cmd->add_option("--landmark-strip", args->strip.join,
+                  "Landmark areas: measure fibre ends against each area's points joined into a strip along their "
+                  "spanning tree, as decompose does (true), or against the points themselves (false)")
+      ->capture_default_str();
+  cmd->add_option("--strip-max-gap", args->strip.max_gap,
+                  "Longest join of landmark points into a strip, as a fraction of the muscle length")
       ->capture_default_str();
   cmd->add_option("--end-fraction", args->attachments.end_fraction,
                   "Automatic areas: share of the length taken at each end")
