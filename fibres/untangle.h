@@ -41,9 +41,9 @@ struct UntangleOptions {
   /// Least sigma of the eps rule (each stage aims eps at (1 - sigma) chi(min det J); sigma is the
   /// stage's relative energy decrease, at least this), (0, 1) (default 0.1, the paper's). 0.3 takes
   /// about a third of the stages on folds that are a small part of the energy (14 stages instead
-  /// of 42 for 13 folded tetrahedra of the LHDL gluteus maximus) and made the 47-muscle corpus
-  /// batch 14 % faster, but with the face rims cast it left 2 cells of VHF vastus lateralis
-  /// folded: 43 muscles passed instead of 44 (docs/BENCHMARKS.md, "Merged, 2026-11-22").
+  /// of 42 for 13 folded tetrahedra of the LHDL gluteus maximus), but with the face rims cast it
+  /// left 2 cells of VHF vastus lateralis folded: 43 corpus muscles passed instead of 44
+  /// (docs/BENCHMARKS.md, "Merged 2026-11-22").
   double min_sigma = 0.1;
   int polish_iterations = 30;  ///< iterations after the last tetrahedron turned positive, >= 0 (default 30)
   /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
