@@ -76,11 +76,8 @@ void run_check(const CheckArgs& args) {
   // their spanning tree (fibres/landmark_strip.h), unless --landmark-strip false.
   const SurfaceQuery query(muscle);
   const bool strips = !args.origin.empty() && args.strip.join;
-  if (strips) {
-    const double length = muscle_length(muscle);
-    areas.origin = join_landmark_strip(areas.origin, query, length, args.strip);
-    areas.insertion = join_landmark_strip(areas.insertion, query, length, args.strip);
-  }
+  nlohmann::json strip_report;
+  if (!args.origin.empty()) strip_report = join_landmark_strips(areas, query, muscle_length(muscle), args.strip);
   const CheckReport report = check_fibres(fibres, muscle, query, areas, args.options);
 
   nlohmann::json json = report.to_json();
@@ -91,6 +88,7 @@ void run_check(const CheckArgs& args) {
                    {"insertion", areas.insertion.source},
                    {"automatic", areas.automatic},
                    {"landmark_strip", strips}};
+  if (!strip_report.is_null()) json["areas"]["strip"] = strip_report;
   if (!args.report.empty()) write_json_report(args.report, json);
   if (args.json) {
     const std::string text = json.dump(2);

@@ -446,7 +446,8 @@ nlohmann::json DecomposeReport::to_json() const {
   j["attempts"] = attempts;
   j["kept_attempt"] = kept_attempt;
   j["renderer"] = renderer;
-  j["seconds"] = {{"repair", repair_seconds},   {"sphere", sphere_seconds}, {"placement", placement_seconds},
+  j["seconds"] = {{"repair", repair_seconds},   {"surface_query", query_seconds},
+                  {"sphere", sphere_seconds},   {"placement", placement_seconds},
                   {"settle", settle_seconds},   {"check", check_seconds},   {"total", seconds}};
   return j;
 }
@@ -465,20 +466,9 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
 
 namespace {
 
-// Both landmark areas joined into strips (fibres/landmark_strip.h); what was done, for the
-// report, with the face shape the placement then gets.
-nlohmann::json join_strips(const TriangleMesh& muscle, Attachments& areas, const StripOptions& options) {
-  if (!options.join) return {{"face_shape", "landmark_disks"}};
-  const SurfaceQuery query(muscle);
-  const double length = muscle_length(muscle);
-  StripReport origin, insertion;
-  areas.origin = join_landmark_strip(areas.origin, query, length, options, &origin);
-  areas.insertion = join_landmark_strip(areas.insertion, query, length, options, &insertion);
-  return {{"face_shape", "joined_strip"}, {"origin", origin.to_json()}, {"insertion", insertion.to_json()}};
-}
-
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& landmarks,
+// `query` is built on `muscle` once for all attempts.
+Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const Landmarks& landmarks,
                                 const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
@@ -493,7 +483,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
       throw OptionError("landmarks: give both an origin and an insertion file, or neither (automatic areas)");
     areas = landmark_attachments(muscle, landmarks.origin, landmarks.origin_source, landmarks.insertion,
                                  landmarks.insertion_source, options.attachments);
-    strip = join_strips(muscle, areas, options.strip);
+    strip = join_landmark_strips(areas, query, muscle_length(muscle), options.strip);
   } else {
     areas = automatic_attachments(muscle, options.attachments);
   }
@@ -545,7 +535,6 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const Landmarks& lan
   for (std::size_t q = 0; q < system.positions.size(); ++q)
     if (system.fixed[q]) system.positions[q] = placement.points[q].position;
   const springs::LatticeShape shape = springs::shape_of(lattice);
-  const SurfaceQuery query(muscle);
   {
     springs::SpringSystem harmonic = system;
     for (springs::Spring& s : harmonic.springs) s.rest = 0.0;
@@ -801,7 +790,10 @@ std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const Decompose
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options) {
   options.validate();
-  Decomposition best = decompose_attempt(muscle, landmarks, options);
+  const auto start = Clock::now();
+  const SurfaceQuery query(muscle);
+  const double query_seconds = since(start);
+  Decomposition best = decompose_attempt(muscle, query, landmarks, options);
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
@@ -818,7 +810,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       continue;
     }
     try {
-      Decomposition d = decompose_attempt(muscle, landmarks, retry);
+      Decomposition d = decompose_attempt(muscle, query, landmarks, retry);
       if (change == "landmark_disks") first_inverted = d.report.quality.inverted_cells;
       attempts.push_back(attempt_json(change, retry, d.report));
       seconds += d.report.seconds;
@@ -835,7 +827,8 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   }
   best.report.attempts = std::move(attempts);
   best.report.kept_attempt = kept;
-  best.report.seconds = seconds;
+  best.report.query_seconds = query_seconds;
+  best.report.seconds = query_seconds + seconds;
   return best;
 }
 

@@ -81,4 +81,14 @@ AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuer
   return out;
 }
 
+nlohmann::json join_landmark_strips(Attachments& areas, const SurfaceQuery& query, double length,
+                                    const StripOptions& options) {
+  options.validate();
+  if (!options.join) return {{"face_shape", "landmark_disks"}};
+  StripReport origin, insertion;
+  areas.origin = join_landmark_strip(areas.origin, query, length, options, &origin);
+  areas.insertion = join_landmark_strip(areas.insertion, query, length, options, &insertion);
+  return {{"face_shape", "joined_strip"}, {"origin", origin.to_json()}, {"insertion", insertion.to_json()}};
+}
+
 }  // namespace fascicle

@@ -67,4 +67,12 @@ struct StripReport {
 AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuery& query, double length,
                                    const StripOptions& options = {}, StripReport* report = nullptr);
 
+/// Both areas of `areas` joined in place by join_landmark_strip() when options.join (the one way
+/// `fascicle decompose` and `fascicle check` join landmark areas, so that the check measures
+/// what the decomposition aimed at). Returns what was done, for a report:
+/// {"face_shape": "joined_strip", "origin": StripReport, "insertion": StripReport}, or
+/// {"face_shape": "landmark_disks"} when options.join is false (areas left as they are).
+nlohmann::json join_landmark_strips(Attachments& areas, const SurfaceQuery& query, double length,
+                                    const StripOptions& options);
+
 }  // namespace fascicle

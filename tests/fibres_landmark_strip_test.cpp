@@ -10,6 +10,7 @@
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <vector>
@@ -70,6 +71,25 @@ TEST_CASE("landmark strip: a row of far-apart landmarks becomes a gapless strip"
   off.join = false;
   CHECK(join_landmark_strip(area, query, length, off, &report).points.size() == area.points.size());
   CHECK_FALSE(report.joined);
+
+  // Both areas at once (what decompose and check call): each joined as above, or left with off.
+  std::vector<Vec3> other;
+  for (int i = -2; i <= 2; ++i) other.push_back(Vec3(i, 0.0, -1.6));
+  Attachments areas;
+  areas.origin = area;
+  areas.insertion = project_landmarks(query, 20.0, other, "other");
+  Attachments both = areas;
+  const nlohmann::json done = join_landmark_strips(both, query, length, StripOptions{});
+  CHECK(done["face_shape"] == "joined_strip");
+  CHECK(done["origin"]["joins"] == 6);
+  CHECK(done["insertion"]["joins"] == 4);
+  CHECK(both.origin.points.size() == joined.points.size());
+  CHECK(both.insertion.points.size() ==
+        join_landmark_strip(areas.insertion, query, length, StripOptions{}).points.size());
+  Attachments left = areas;
+  CHECK(join_landmark_strips(left, query, length, off)["face_shape"] == "landmark_disks");
+  CHECK(left.origin.points.size() == area.points.size());
+  CHECK(left.insertion.points.size() == other.size());
 }
 
 TEST_CASE("landmark strip: options are checked", "[fibres][strip]") {
