@@ -266,7 +266,9 @@ __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m,
 // 1 / |l| is y0 = VRSQRT14PD(l2) (relative error e0 below 2^-14) refined by one third-order
 // step y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2):
 // relative error below 5/16 e0^3, about 6e-13, plus rounding. It is folded into w as
-// (k - y0) - (y0 e)(1/2 + 3/8 e), whose longest chain is two operations shorter than y's.
+// k - y0 (1 + e (1/2 + 3/8 e)): after e, three FMA-class operations where
+// (k - y0) - (y0 e)(1/2 + 3/8 e) took a multiplication, two FMAs and a subtraction; 2-3 % less
+// processor time at 100^3 model-26 on one thread (docs/BENCHMARKS.md, 2026-11-22 03:48 UTC).
 // Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path). Explicit FMAs; the
 // library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
 template <bool Masked>
@@ -279,10 +281,9 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(_
   // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
   const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
   const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
-  const __m512d ye = _mm512_mul_pd(y0, e);
   const __m512d g = _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5));
-  const __m512d ky = _mm512_sub_pd(k, y0);
-  return Masked ? _mm512_maskz_fnmadd_pd(m, ye, g, ky) : _mm512_fnmadd_pd(ye, g, ky);  // 0 without a spring
+  const __m512d u = _mm512_fmadd_pd(e, g, _mm512_set1_pd(1.0));
+  return Masked ? _mm512_maskz_fnmadd_pd(m, y0, u, k) : _mm512_fnmadd_pd(y0, u, k);  // 0 without a spring
 }
 
 template <int Directions>
