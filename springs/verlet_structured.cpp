@@ -410,17 +410,18 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
         const __m512d w0 = spring(d0, Kind != 0 || r.valid[d0], 0, s, l0);
         const __m512d wp = spring(dp, Kind != 0 || r.valid[dp], 0, s, lp);
         const bool push = Kind != 0 || r.group_push[g][0];
+        // The dx = 0 force is never formed on its own: it goes into both sums by FMAs (one
+        // operation less than a product and two additions).
         for (int c = 0; c < 3; ++c) {
-          const __m512d f0 = _mm512_mul_pd(w0, l0[c]);
           const __m512d fp = _mm512_mul_pd(wp, lp[c]);
-          own[c] = _mm512_add_pd(own[c], f0);
+          own[c] = _mm512_fmadd_pd(w0, l0[c], own[c]);
           own_up[c] = _mm512_add_pd(own_up[c], fp);
           minus[c] = _mm512_fmadd_pd(wm, lm[c], minus[c]);
           if (!push) continue;
           const __m512d up = _mm512_castsi512_pd(
               _mm512_alignr_epi64(_mm512_castpd_si512(fp), _mm512_castpd_si512(group_carry[g][c]), 7));
           group_carry[g][c] = fp;
-          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_add_pd(f0, up));
+          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_fmadd_pd(w0, l0[c], up));
           double* target = r.group_push[g][c] + i;
           if (Kind == 0) store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
           else _mm512_storeu_pd(target, _mm512_sub_pd(_mm512_loadu_pd(target), sum));
