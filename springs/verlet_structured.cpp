@@ -427,13 +427,15 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
           else _mm512_storeu_pd(target, _mm512_sub_pd(_mm512_loadu_pd(target), sum));
         }
       }
-      // own = along and dx = 0 + dx = +1 + dx = -1 (shifted up: the previous vector's last lane
-      // coming in at lane 0)
+      // own = along and dx = 0 + dx = +1 + the forces on the next point (dx = -1 sources, minus
+      // the along-x spring at its target) shifted up, the previous vector's last lane coming in
+      // at lane 0: one shift and one carry for both.
       for (int c = 0; c < 3; ++c) {
-        const __m512d minus_up = _mm512_castsi512_pd(
-            _mm512_alignr_epi64(_mm512_castpd_si512(minus[c]), _mm512_castpd_si512(minus_carry[c]), 7));
-        minus_carry[c] = minus[c];
-        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), minus_up);
+        const __m512d back = _mm512_sub_pd(minus[c], along[c]);
+        const __m512d back_up = _mm512_castsi512_pd(
+            _mm512_alignr_epi64(_mm512_castpd_si512(back), _mm512_castpd_si512(minus_carry[c]), 7));
+        minus_carry[c] = back;
+        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), back_up);
       }
     } else {
 #pragma GCC unroll 13
@@ -465,13 +467,17 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
     }
     if (!r.integrate) return;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
-    // lane coming in at lane 0.
+    // lane coming in at lane 0 (model-26: already in own, above).
     __m512d force[3];
     for (int c = 0; c < 3; ++c) {
-      const __m512d shifted = _mm512_castsi512_pd(
-          _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
-      carry[c] = along[c];
-      force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+      if constexpr (Directions == kMaxDirections) {
+        force[c] = _mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]);
+      } else {
+        const __m512d shifted = _mm512_castsi512_pd(
+            _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
+        carry[c] = along[c];
+        force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+      }
     }
     std::uint64_t packed = 0;  // the 8 fixed flags (fewer at the row's end)
     std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= 8 ? 8 : left));
