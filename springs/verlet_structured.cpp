@@ -225,7 +225,8 @@ const RowFunction kRows[2][2][2][2] = {
 // (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
 // target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
 // f one lane up and carrying the last lane into the next vector. The force of a point is then
-// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once.
+// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once. (Model-26
+// shifts the along-x force together with the dx = -1 springs' forces on their sources.)
 // Without `integrate` (a slab's prologue) only the pushes are made.
 struct FusedRow {
   const double* x[3];               // the row's positions (index i = point i of the row)
