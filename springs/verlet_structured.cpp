@@ -225,7 +225,8 @@ const RowFunction kRows[2][2][2][2] = {
 // (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
 // target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
 // f one lane up and carrying the last lane into the next vector. The force of a point is then
-// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once.
+// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once. (Model-26
+// shifts the along-x force together with the dx = -1 springs' forces on their sources.)
 // Without `integrate` (a slab's prologue) only the pushes are made.
 struct FusedRow {
   const double* x[3];               // the row's positions (index i = point i of the row)
@@ -266,7 +267,9 @@ __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m,
 // 1 / |l| is y0 = VRSQRT14PD(l2) (relative error e0 below 2^-14) refined by one third-order
 // step y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2):
 // relative error below 5/16 e0^3, about 6e-13, plus rounding. It is folded into w as
-// (k - y0) - (y0 e)(1/2 + 3/8 e), whose longest chain is two operations shorter than y's.
+// k - y0 (1 + e (1/2 + 3/8 e)): after e, three FMA-class operations where
+// (k - y0) - (y0 e)(1/2 + 3/8 e) took a multiplication, two FMAs and a subtraction; 2-3 % less
+// processor time at 100^3 model-26 on one thread (docs/BENCHMARKS.md, 2026-11-22 03:48 UTC).
 // Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path). Explicit FMAs; the
 // library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
 template <bool Masked>
@@ -279,10 +282,9 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(_
   // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
   const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
   const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
-  const __m512d ye = _mm512_mul_pd(y0, e);
   const __m512d g = _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5));
-  const __m512d ky = _mm512_sub_pd(k, y0);
-  return Masked ? _mm512_maskz_fnmadd_pd(m, ye, g, ky) : _mm512_fnmadd_pd(ye, g, ky);  // 0 without a spring
+  const __m512d u = _mm512_fmadd_pd(e, g, _mm512_set1_pd(1.0));
+  return Masked ? _mm512_maskz_fnmadd_pd(m, y0, u, k) : _mm512_fnmadd_pd(y0, u, k);  // 0 without a spring
 }
 
 template <int Directions>
@@ -409,29 +411,32 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
         const __m512d w0 = spring(d0, Kind != 0 || r.valid[d0], 0, s, l0);
         const __m512d wp = spring(dp, Kind != 0 || r.valid[dp], 0, s, lp);
         const bool push = Kind != 0 || r.group_push[g][0];
+        // The dx = 0 force is never formed on its own: it goes into both sums by FMAs (one
+        // operation less than a product and two additions).
         for (int c = 0; c < 3; ++c) {
-          const __m512d f0 = _mm512_mul_pd(w0, l0[c]);
           const __m512d fp = _mm512_mul_pd(wp, lp[c]);
-          own[c] = _mm512_add_pd(own[c], f0);
+          own[c] = _mm512_fmadd_pd(w0, l0[c], own[c]);
           own_up[c] = _mm512_add_pd(own_up[c], fp);
           minus[c] = _mm512_fmadd_pd(wm, lm[c], minus[c]);
           if (!push) continue;
           const __m512d up = _mm512_castsi512_pd(
               _mm512_alignr_epi64(_mm512_castpd_si512(fp), _mm512_castpd_si512(group_carry[g][c]), 7));
           group_carry[g][c] = fp;
-          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_add_pd(f0, up));
+          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_fmadd_pd(w0, l0[c], up));
           double* target = r.group_push[g][c] + i;
           if (Kind == 0) store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
           else _mm512_storeu_pd(target, _mm512_sub_pd(_mm512_loadu_pd(target), sum));
         }
       }
-      // own = along and dx = 0 + dx = +1 + dx = -1 (shifted up: the previous vector's last lane
-      // coming in at lane 0)
+      // own = along and dx = 0 + dx = +1 + the forces on the next point (dx = -1 sources, minus
+      // the along-x spring at its target) shifted up, the previous vector's last lane coming in
+      // at lane 0: one shift and one carry for both.
       for (int c = 0; c < 3; ++c) {
-        const __m512d minus_up = _mm512_castsi512_pd(
-            _mm512_alignr_epi64(_mm512_castpd_si512(minus[c]), _mm512_castpd_si512(minus_carry[c]), 7));
-        minus_carry[c] = minus[c];
-        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), minus_up);
+        const __m512d back = _mm512_sub_pd(minus[c], along[c]);
+        const __m512d back_up = _mm512_castsi512_pd(
+            _mm512_alignr_epi64(_mm512_castpd_si512(back), _mm512_castpd_si512(minus_carry[c]), 7));
+        minus_carry[c] = back;
+        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), back_up);
       }
     } else {
 #pragma GCC unroll 13
@@ -463,13 +468,17 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
     }
     if (!r.integrate) return;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
-    // lane coming in at lane 0.
+    // lane coming in at lane 0 (model-26: already in own, above).
     __m512d force[3];
     for (int c = 0; c < 3; ++c) {
-      const __m512d shifted = _mm512_castsi512_pd(
-          _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
-      carry[c] = along[c];
-      force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+      if constexpr (Directions == kMaxDirections) {
+        force[c] = _mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]);
+      } else {
+        const __m512d shifted = _mm512_castsi512_pd(
+            _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
+        carry[c] = along[c];
+        force[c] = _mm512_sub_pd(_mm512_add_pd(load8(row_mask, r.ring[c] + i), own[c]), shifted);
+      }
     }
     std::uint64_t packed = 0;  // the 8 fixed flags (fewer at the row's end)
     std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= 8 ? 8 : left));
