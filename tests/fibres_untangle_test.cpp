@@ -138,6 +138,65 @@ TEST_CASE("untangle: uncounted tetrahedra do not stop it; anchors pull", "[fibre
   CHECK(u.uncounted_inverted_after > 0);
 }
 
+TEST_CASE("untangle: with nothing inverted, soft pins are followed by the polish alone (direct_polish)",
+          "[fibres][untangle]") {
+  // The containment rounds of the lattice untangling: no tetrahedron inverted, only anchors pull.
+  auto pulled = [](bool direct, UntangleReport& r) {
+    Grid g = make_grid(5);
+    const int q = g.index(2, 2, 2);
+    const Vec3 start = g.positions[static_cast<std::size_t>(q)];
+    const Vec3 target = start + Vec3(0.05, 0.0, 0.0);
+    UntangleOptions o;
+    o.direct_polish = direct;
+    r = untangle(g.positions, g.fixed, g.tets, o, {{q, target, 1e4}});
+    CHECK(inverted(g.positions, g.tets) == 0);
+    return (g.positions[static_cast<std::size_t>(q)] - target).norm() / (start - target).norm();
+  };
+  UntangleReport direct, staged;
+  const double direct_left = pulled(true, direct), staged_left = pulled(false, staged);
+  INFO("direct: " << direct.to_json().dump() << "\nstaged: " << staged.to_json().dump());
+  CHECK_FALSE(UntangleOptions{}.direct_polish);  // off by default (docs/BENCHMARKS.md)
+  CHECK(direct.stages == 0);
+  CHECK(direct.iterations <= UntangleOptions{}.polish_iterations);
+  CHECK(direct.iterations > 0);
+  CHECK(staged.stages >= 1);
+  CHECK(staged.iterations > direct.iterations);
+  CHECK(direct.untangled());
+  CHECK(staged.untangled());
+  CHECK(direct_left < 0.5);  // pulled most of the way, as with the stages
+  CHECK(staged_left < 0.5);
+
+  // A fold present: the stages run, direct_polish or not.
+  Grid g = make_grid(6);
+  g.positions[static_cast<std::size_t>(g.index(2, 2, 2))] += Vec3(0.45, 0.0, 0.0);
+  REQUIRE(inverted(g.positions, g.tets) > 0);
+  UntangleOptions direct_options;
+  direct_options.direct_polish = true;
+  const UntangleReport folded = untangle(g.positions, g.fixed, g.tets, direct_options);
+  CHECK(folded.stages >= 1);
+  CHECK(folded.untangled());
+}
+
+TEST_CASE("untangle: problems smaller than, and not a multiple of, the block of the energy's terms",
+          "[fibres][untangle]") {
+  // One cell (6 tetrahedra) with one free corner pushed through the opposite face, and 2 x 2 x 2
+  // cells less one tetrahedron (47): the energy's terms are computed in blocks of 8 tetrahedra.
+  for (int drop : {0, 1}) {
+    Grid g = make_grid(drop ? 3 : 2);
+    std::fill(g.fixed.begin(), g.fixed.end(), 1);
+    const std::size_t q = static_cast<std::size_t>(g.index(1, 1, 1));
+    g.fixed[q] = 0;
+    if (drop) g.tets.pop_back();
+    const Vec3 home = g.positions[q];
+    g.positions[q] = drop ? home + Vec3(0.8, 0.7, 0.75) : Vec3(-0.2, -0.1, -0.15);
+    REQUIRE(inverted(g.positions, g.tets) > 0);
+    const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
+    INFO("drop " << drop << ": " << r.to_json().dump());
+    CHECK(r.untangled());
+    CHECK(inverted(g.positions, g.tets) == 0);
+  }
+}
+
 TEST_CASE("untangle: a floor of sigma lowers eps in fewer stages on a fold that is a small part of the energy",
           "[fibres][untangle]") {
   // One point pushed through several layers of a large grid: the fold is a few tetrahedra among
