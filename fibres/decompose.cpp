@@ -753,36 +753,39 @@ bool better_result(const CheckReport& a, const CheckReport& b) {
   return a.coverage.p95 < b.coverage.p95;
 }
 
-std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given) {
-  std::vector<std::pair<std::string, DecomposeOptions>> plan;
-  if (options.retry_alternative) plan.emplace_back("alternative_placement", alternative_placement(options));
+std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmarks_given) {
+  std::vector<RetryStep> plan;
+  if (options.retry_alternative) plan.push_back({"alternative_placement", alternative_placement(options), true, false});
   // The face rims left where the placement put them (the cast before 2026-11-22): casting them
   // opens the folds next to narrow ends (VHF psoas, vastus intermedius, VHM quadratus femoris)
   // but folds 2 cells of VHM obturator internus, which pass with the rims left.
   if (options.retry_alternative && options.cast_rim) {
     DecomposeOptions retry = options;
     retry.cast_rim = false;
-    plan.emplace_back("rim_left", retry);
+    plan.push_back({"rim_left", retry, false, false});
   }
   if (landmarks_given)
     for (double twist : options.landmark_twists_deg) {
       DecomposeOptions retry = options;
       retry.placement.corner_twist_deg = twist;
-      plan.emplace_back("corner_twist", retry);
+      plan.push_back({"corner_twist", retry, false, false});
     }
-  for (auto& [change, retry] : plan) {
-    retry.retry_alternative = false;
-    retry.landmark_twists_deg.clear();
+  for (RetryStep& step : plan) {
+    step.options.retry_alternative = false;
+    step.options.landmark_twists_deg.clear();
   }
   // Landmark strips that fail every try: the whole plan again with the landmark disks.
   if (landmarks_given && options.strip.join && options.strip.disk_fallback) {
     DecomposeOptions disks = options;
     disks.strip.join = false;
-    auto first = disks;
+    DecomposeOptions first = disks;
     first.retry_alternative = false;
     first.landmark_twists_deg.clear();
-    plan.emplace_back("landmark_disks", first);
-    for (auto& [change, retry] : retry_plan(disks, true)) plan.emplace_back("landmark_disks_" + change, retry);
+    plan.push_back({"landmark_disks", first, false, true});
+    for (RetryStep& step : retry_plan(disks, true)) {
+      step.change = "landmark_disks_" + step.change;
+      plan.push_back(std::move(step));
+    }
   }
   return plan;
 }
@@ -799,10 +802,11 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   int kept = 0;
   // Inverted cells of the first try of the current sequence (the strips', then the disks').
   long first_inverted = best.report.quality.inverted_cells;
-  for (const auto& [change, retry] : retry_plan(options, landmarks.given())) {
+  for (const RetryStep& step : retry_plan(options, landmarks.given())) {
+    const std::string& change = step.change;
+    const DecomposeOptions& retry = step.options;
     if (best.report.quality.pass) break;
-    if ((change == "alternative_placement" || change == "landmark_disks_alternative_placement") &&
-        first_inverted > options.retry_max_inverted_cells) {
+    if (step.gated && first_inverted > options.retry_max_inverted_cells) {
       attempts.push_back({{"change", change},
                           {"status", "skipped"},
                           {"why", "the first result has more than retry_max_inverted_cells (" +
@@ -811,7 +815,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     }
     try {
       Decomposition d = decompose_attempt(muscle, query, landmarks, retry);
-      if (change == "landmark_disks") first_inverted = d.report.quality.inverted_cells;
+      if (step.starts_sequence) first_inverted = d.report.quality.inverted_cells;
       attempts.push_back(attempt_json(change, retry, d.report));
       seconds += d.report.seconds;
       if (better_result(d.report.quality, best.report.quality)) {

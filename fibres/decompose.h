@@ -185,7 +185,16 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 /// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
 /// the strips off) and the same plan again with the strips off, each change prefixed
 /// "landmark_disks_". Retries do not retry.
-std::vector<std::pair<std::string, DecomposeOptions>> retry_plan(const DecomposeOptions& options, bool landmarks_given);
+struct RetryStep {
+  std::string change;        ///< what the step changes (the names above), for the report
+  DecomposeOptions options;  ///< the options of the whole decomposition tried
+  /// Skipped when the first try of its sequence (the first try, or "landmark_disks") has more
+  /// inverted cells than DecomposeOptions::retry_max_inverted_cells (the alternative placements).
+  bool gated = false;
+  /// Its result is the first try of a new sequence (the landmark disks' first try).
+  bool starts_sequence = false;
+};
+std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmarks_given);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
 /// inverted cells, a larger inside fraction, a lower coverage p95 (the first of equals is kept).

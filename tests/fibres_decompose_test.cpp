@@ -248,34 +248,40 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   options.landmark_twists_deg = {0.0, 67.5};
   const auto automatic = retry_plan(options, false);
   REQUIRE(automatic.size() == 2);
-  CHECK(automatic[0].first == "alternative_placement");
-  CHECK(automatic[0].second.cast_rim);
-  CHECK(automatic[1].first == "rim_left");
-  CHECK_FALSE(automatic[1].second.cast_rim);
-  CHECK(automatic[1].second.placement.even_perimeter == options.placement.even_perimeter);
+  CHECK(automatic[0].change == "alternative_placement");
+  CHECK(automatic[0].options.cast_rim);
+  CHECK(automatic[1].change == "rim_left");
+  CHECK_FALSE(automatic[1].options.cast_rim);
+  CHECK(automatic[1].options.placement.even_perimeter == options.placement.even_perimeter);
   const auto given = retry_plan(options, true);
   // With the landmark strips: the alternative, the rims left and both twists; then the first try
   // and the same four with the landmark disks (StripOptions::disk_fallback).
   REQUIRE(given.size() == 9);
-  CHECK(given[1].first == "rim_left");
-  CHECK(given[2].first == "corner_twist");
-  CHECK(given[2].second.placement.corner_twist_deg == 0.0);
-  CHECK(given[2].second.cast_rim);
-  CHECK(given[3].second.placement.corner_twist_deg == 67.5);
-  CHECK(given[3].second.placement.even_perimeter == options.placement.even_perimeter);
-  CHECK(given[4].first == "landmark_disks");
-  CHECK(given[4].second.placement.corner_twist_deg == options.placement.corner_twist_deg);
-  CHECK(given[5].first == "landmark_disks_alternative_placement");
-  CHECK(given[6].first == "landmark_disks_rim_left");
-  CHECK_FALSE(given[6].second.cast_rim);
-  CHECK(given[8].first == "landmark_disks_corner_twist");
-  CHECK(given[8].second.placement.corner_twist_deg == 67.5);
-  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].second.strip.join == (i < 4));
-  for (const auto& [change, retry] : given) {
-    CHECK_FALSE(retry.retry_alternative);
-    CHECK(retry.landmark_twists_deg.empty());
-    CHECK_NOTHROW(retry.validate());
+  CHECK(given[1].change == "rim_left");
+  CHECK(given[2].change == "corner_twist");
+  CHECK(given[2].options.placement.corner_twist_deg == 0.0);
+  CHECK(given[2].options.cast_rim);
+  CHECK(given[3].options.placement.corner_twist_deg == 67.5);
+  CHECK(given[3].options.placement.even_perimeter == options.placement.even_perimeter);
+  CHECK(given[4].change == "landmark_disks");
+  CHECK(given[4].options.placement.corner_twist_deg == options.placement.corner_twist_deg);
+  CHECK(given[5].change == "landmark_disks_alternative_placement");
+  CHECK(given[6].change == "landmark_disks_rim_left");
+  CHECK_FALSE(given[6].options.cast_rim);
+  CHECK(given[8].change == "landmark_disks_corner_twist");
+  CHECK(given[8].options.placement.corner_twist_deg == 67.5);
+  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].options.strip.join == (i < 4));
+  for (const RetryStep& step : given) {
+    CHECK_FALSE(step.options.retry_alternative);
+    CHECK(step.options.landmark_twists_deg.empty());
+    CHECK_NOTHROW(step.options.validate());
+    // Only the alternative placements are gated by the first try's folds; only the disks' first
+    // try starts a new sequence.
+    CHECK(step.gated == (step.change == "alternative_placement" || step.change == "landmark_disks_alternative_placement"));
+    CHECK(step.starts_sequence == (step.change == "landmark_disks"));
   }
+  CHECK(automatic[0].gated);
+  CHECK_FALSE(automatic[1].gated);
   options.cast_rim = false;
   CHECK(retry_plan(options, false).size() == 1);
   options.retry_alternative = false;
