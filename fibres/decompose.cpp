@@ -758,11 +758,12 @@ std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmark
   if (options.retry_alternative) plan.push_back({"alternative_placement", alternative_placement(options), true, false});
   // The face rims left where the placement put them (the cast before 2026-11-22): casting them
   // opens the folds next to narrow ends (VHF psoas, vastus intermedius, VHM quadratus femoris)
-  // but folds 2 cells of VHM obturator internus, which pass with the rims left.
+  // but folds 2 cells of VHM obturator internus, which pass with the rims left. Gated as the
+  // alternative is: after a badly folded first try it has not helped (DecomposeOptions).
   if (options.retry_alternative && options.cast_rim) {
     DecomposeOptions retry = options;
     retry.cast_rim = false;
-    plan.push_back({"rim_left", retry, false, false});
+    plan.push_back({"rim_left", retry, true, false});
   }
   if (landmarks_given)
     for (double twist : options.landmark_twists_deg) {

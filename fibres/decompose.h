@@ -113,11 +113,13 @@ struct DecomposeOptions {
   /// leaves depend on its free choices, and a muscle that folds with one often does not with
   /// the other; docs/BENCHMARKS.md, "Decompose").
   bool retry_alternative = true;
-  /// The second try is skipped when the first result has more inverted cells than this, >= 0
-  /// (default 50: on the 47 corpus muscles no first result with more folded cells (72, 135, 204,
-  /// 311) passed on the second try, and those tries took 40 s of the batch's 233 s of processor
-  /// time; results with 2-47 were retried and two of them then passed; docs/BENCHMARKS.md,
-  /// "Decompose").
+  /// The alternative placement and the rims left (retry_plan()) are skipped when the first
+  /// result has more inverted cells than this, >= 0 (default 50: on the 47 corpus muscles no first
+  /// result with more folded cells (72, 135, 204, 311) passed on the second try, and those tries
+  /// took 40 s of the batch's 233 s of processor time; results with 2-47 were retried and two of
+  /// them then passed; docs/BENCHMARKS.md, "Decompose". The rims left, gated too since
+  /// 2026-11-22: after first results with 136, 196 and 313 folded cells they gave 134, 203 and
+  /// 311 for 40 s of processor time; the one muscle they rescue had 3).
   long retry_max_inverted_cells = 50;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
@@ -189,7 +191,8 @@ struct RetryStep {
   std::string change;        ///< what the step changes (the names above), for the report
   DecomposeOptions options;  ///< the options of the whole decomposition tried
   /// Skipped when the first try of its sequence (the first try, or "landmark_disks") has more
-  /// inverted cells than DecomposeOptions::retry_max_inverted_cells (the alternative placements).
+  /// inverted cells than DecomposeOptions::retry_max_inverted_cells (the alternative placements
+  /// and the rims left; the corner twists are not: they change the lattice's whole turn).
   bool gated = false;
   /// Its result is the first try of a new sequence (the landmark disks' first try).
   bool starts_sequence = false;

@@ -46,10 +46,10 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     unfolded += q["inverted_cells"].get<long>() == 0;
     inverted += q["inverted_cells"].get<long>();
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
-    // The retries: none after a pass; after a failure the second try runs unless the first
-    // result has more than retry_max_inverted_cells (50) inverted cells, and is then listed as
-    // skipped; unless that passes, the third (face rims left where the placement put them)
-    // runs; the kept attempt's figures are the report's.
+    // The retries: none after a pass; after a failure the second try (alternative placement)
+    // and, unless that passes, the third (face rims left where the placement put them) run
+    // unless the first result has more than retry_max_inverted_cells (50) inverted cells, and
+    // are then listed as skipped; the kept attempt's figures are the report's.
     const auto& attempts = r["attempts"];
     REQUIRE(attempts.size() >= 1);
     CHECK(attempts[0]["change"] == "none");
@@ -63,7 +63,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
       else {
         REQUIRE(attempts.size() == 3);
         CHECK(attempts[2]["change"] == "rim_left");
-        CHECK(attempts[2]["status"] != "skipped");
+        if (attempts[0]["inverted_cells"].get<long>() > 50) CHECK(attempts[2]["status"] == "skipped");
+        else CHECK(attempts[2]["status"] != "skipped");
       }
     }
     const auto& kept = attempts[r["kept_attempt"].get<std::size_t>()];
