@@ -27,7 +27,7 @@
 // their vectors without masks, and software prefetch brings the positions of the next plane's
 // rows and the previous positions ahead of the loads.
 //
-// This path needs AVX-512: a row is one loop written with intrinsics (fused_row_avx512: own
+// This path needs AVX-512: a row is one loop written with intrinsics (fused_rows_avx512_t: own
 // springs summed in registers, integration in the same pass) and takes 1 / sqrt from
 // VRSQRT14PD refined by one third-order step (relative error below about 6e-13). Elsewhere (or
 // after set_structured_simd(false)) the portable gather path runs: every spring evaluated from
@@ -287,20 +287,21 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(_
   return Masked ? _mm512_maskz_fnmadd_pd(m, y0, u, k) : _mm512_fnmadd_pd(y0, u, k);  // 0 without a spring
 }
 
+// `rows` consecutive rows of one plane (r the first) whose springs, targets and pushes are alike
+// (the same directions valid and pushed): every pointer of the next row is nx further on, so
+// the set-up (the FusedRow, the groups' offsets and stiffness) is made once for the run. Row t's
+// largest squared force (bits) and power go to largest_out[t] and power_out[t].
 template <int Directions>
-__attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedRow& given, double* power) {
+__attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& given, long rows,
+                                                            std::uint64_t* largest_out, double* power_out) {
   // A local copy: vector stores may alias anything, so fields read through a reference would be
   // reloaded after every store.
-  const FusedRow r = given;
+  FusedRow r = given;
   const long nx = r.nx;
-  const double* const x[3] = {r.x[0], r.x[1], r.x[2]};
-  __m512d carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
-  __m512d minus_carry[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
-  __m512d group_carry[4][3];
-  for (auto& g : group_carry)
-    for (auto& c : g) c = _mm512_setzero_pd();
-  __m512i largest = _mm512_setzero_si512();
-  __m512d fv = _mm512_setzero_pd();
+  const double* x[3] = {r.x[0], r.x[1], r.x[2]};
+  __m512d carry[3], minus_carry[3], group_carry[4][3];
+  __m512i largest;
+  __m512d fv;
   // Model-26 rows with every spring and every push (all but the rows at the lattice's faces
   // and around the tile) run their vectors but the last (i + 8 < nx: every lane's springs
   // exist, see below) through a copy of the loop body without masks or per-direction tests.
@@ -334,7 +335,7 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
   for (int d = 0; d < r.directions; ++d) ahead = std::max(ahead, r.offset[d]);
   ahead += 2 * nx;
   const long along_offset = r.along_x >= 0 ? r.offset[r.along_x] : 0;
-  const double* const along_k = r.along_x >= 0 ? r.k[r.along_x] : nullptr;
+  const double* along_k = r.along_x >= 0 ? r.k[r.along_x] : nullptr;
   const double along_ku = r.along_x >= 0 ? r.ku[r.along_x] : 0.0;
   // One vector of 8 points from i. Kind: 0 the checked body, 1 a vector of a full row (see
   // above) with uniform stiffness, 2 the same with per-point stiffness.
@@ -501,30 +502,66 @@ __attribute__((target("avx512f"))) std::uint64_t fused_row_avx512_t(const FusedR
       store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
     }
   };
-  for (long i = 0; i < nx; i += 8) {
-    if constexpr (Directions == kMaxDirections) {
-      if (full && i + 8 < nx) {
-        if (arrays) vector(i, std::integral_constant<int, 2>());
-        else vector(i, std::integral_constant<int, 1>());
-        continue;
-      }
+  // The next row's pointers: nx further on (null ones stay null).
+  auto advance = [nx](auto*& pointer) {
+    if (pointer) pointer += nx;
+  };
+  for (long row = 0; row < rows; ++row) {
+    for (int c = 0; c < 3; ++c) {
+      carry[c] = minus_carry[c] = _mm512_setzero_pd();
+      for (int g = 0; g < 4; ++g) group_carry[g][c] = _mm512_setzero_pd();
     }
-    vector(i, std::integral_constant<int, 0>());
+    largest = _mm512_setzero_si512();
+    fv = _mm512_setzero_pd();
+    for (long i = 0; i < nx; i += 8) {
+      if constexpr (Directions == kMaxDirections) {
+        if (full && i + 8 < nx) {
+          if (arrays) vector(i, std::integral_constant<int, 2>());
+          else vector(i, std::integral_constant<int, 1>());
+          continue;
+        }
+      }
+      vector(i, std::integral_constant<int, 0>());
+    }
+    if (r.integrate) {
+      alignas(64) double lanes[8];
+      _mm512_store_pd(lanes, fv);
+      double sum = 0.0;
+      for (double v : lanes) sum += v;
+      power_out[row] = sum;
+      alignas(64) std::uint64_t big[8];
+      _mm512_store_si512(reinterpret_cast<__m512i*>(big), largest);
+      std::uint64_t out = 0;
+      for (std::uint64_t v : big) out = v > out ? v : out;
+      largest_out[row] = out;
+    }
+    if (row + 1 == rows) break;
+    for (int c = 0; c < 3; ++c) {
+      x[c] += nx;
+      advance(r.p[c]);
+      advance(r.ring[c]);
+    }
+    if constexpr (Directions == kMaxDirections) {
+      for (int g = 0; g < 4; ++g)
+        for (int c = 0; c < 3; ++c) {
+          advance(r.group_push[g][c]);
+          advance(group_k[g][c]);
+        }
+      advance(along_k);
+    } else {
+      for (int d = 0; d < Directions; ++d)
+        for (int c = 0; c < 3; ++c) advance(r.push[d][c]);
+    }
+    for (int d = 0; d < Directions; ++d) advance(r.k[d]);  // (the checked body's stiffness)
+    advance(r.a);
+    advance(r.b);
+    advance(r.fixed);
   }
-  alignas(64) double lanes[8];
-  _mm512_store_pd(lanes, fv);
-  double sum = 0.0;
-  for (double v : lanes) sum += v;
-  *power += sum;
-  alignas(64) std::uint64_t big[8];
-  _mm512_store_si512(reinterpret_cast<__m512i*>(big), largest);
-  std::uint64_t out = 0;
-  for (std::uint64_t v : big) out = v > out ? v : out;
-  return out;
 }
 
-std::uint64_t fused_row_avx512(const FusedRow& r, double* power) {
-  return r.directions == 3 ? fused_row_avx512_t<3>(r, power) : fused_row_avx512_t<kMaxDirections>(r, power);
+void fused_rows_avx512(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out) {
+  if (r.directions == 3) fused_rows_avx512_t<3>(r, rows, largest_out, power_out);
+  else fused_rows_avx512_t<kMaxDirections>(r, rows, largest_out, power_out);
 }
 #pragma GCC diagnostic pop
 #endif
@@ -781,18 +818,16 @@ class StructuredVerlet final : public SpringSolver {
   }
 #endif
 
-  // One row of the AVX-512 path. `integrate`: a row of the tile (own springs, then the row is
-  // complete and integrated); else a row around it (pushes into the tile only).
-  void process_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
+  // Rows r .. r + count - 1 of one plane on the AVX-512 path, alike in their springs and pushes
+  // (fused_rows_avx512_t). `integrate`: rows of the tile (own springs, then each row is complete
+  // and integrated); else rows around it (pushes into the tile only).
+  void process_rows(Ring& ring, long r, long count, const Tile& tile, bool integrate, bool forward_only,
+                    bool write) {
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
-    double power = 0.0;
-    const std::uint64_t largest = fused_row_avx512(fused_row(ring, r, tile, integrate, forward_only, write), &power);
-    if (integrate) {
-      row_largest_[r] = largest;
-      row_power_[r] = power;
-    }
+    fused_rows_avx512(fused_row(ring, r, tile, integrate, forward_only, write), count, row_largest_.data() + r,
+                      row_power_.data() + r);
 #else
-    (void)ring, (void)r, (void)tile, (void)integrate, (void)forward_only, (void)write;
+    (void)ring, (void)r, (void)count, (void)tile, (void)integrate, (void)forward_only, (void)write;
 #endif
   }
 
@@ -905,10 +940,17 @@ class StructuredVerlet final : public SpringSolver {
         tile.k1 = std::min<long>(shape_.nz, tile.k0 + slab_);
         tile.j0 = (task % strips_) * strip_;
         tile.j1 = std::min<long>(ny, tile.j0 + strip_);
+        // The strip's rows but its first and last are alike (their targets j - 1 .. j + 1 are
+        // all in the strip and the lattice): one run. The first and last row push into one row
+        // fewer each.
         auto plane = [&](long k, bool integrate, bool forward_only) {
-          if (tile.j0 > 0) process_row(ring, tile.j0 - 1 + ny * k, tile, false, forward_only, write);
-          for (long j = tile.j0; j < tile.j1; ++j) process_row(ring, j + ny * k, tile, integrate, forward_only, write);
-          if (tile.j1 < ny) process_row(ring, tile.j1 + ny * k, tile, false, forward_only, write);
+          const long r0 = ny * k;
+          if (tile.j0 > 0) process_rows(ring, r0 + tile.j0 - 1, 1, tile, false, forward_only, write);
+          process_rows(ring, r0 + tile.j0, 1, tile, integrate, forward_only, write);
+          if (tile.j1 - tile.j0 > 2)
+            process_rows(ring, r0 + tile.j0 + 1, tile.j1 - tile.j0 - 2, tile, integrate, forward_only, write);
+          if (tile.j1 - tile.j0 > 1) process_rows(ring, r0 + tile.j1 - 1, 1, tile, integrate, forward_only, write);
+          if (tile.j1 < ny) process_rows(ring, r0 + tile.j1, 1, tile, false, forward_only, write);
         };
         for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * tile.k0);
         if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
