@@ -249,6 +249,7 @@ struct FusedRow {
   const std::uint8_t* fixed;
   long nx;
   bool integrate, write;
+  bool power;  // sum f . v (the momentum solver's restart test); else the power is left 0
 };
 
 // Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
@@ -491,8 +492,10 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
     __m512d v[3];
     for (int c = 0; c < 3; ++c) v[c] = _mm512_sub_pd(s[c], load8(row_mask, r.p[c] + i));
-    const __m512d pv = _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
-    fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
+    if (r.power) {
+      const __m512d pv = _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
+      fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
+    }
     if (!r.write) return;
     const __m512d a = r.a ? load8(row_mask, r.a + i) : _mm512_set1_pd(r.au);
     const __m512d b = r.b ? load8(row_mask, r.b + i) : _mm512_set1_pd(r.bu);
@@ -814,6 +817,7 @@ class StructuredVerlet final : public SpringSolver {
     f.nx = nx;
     f.integrate = integrate;
     f.write = write;
+    f.power = momentum_;  // only the momentum solver reads power_
     return f;
   }
 #endif
