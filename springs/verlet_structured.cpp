@@ -635,14 +635,17 @@ class StructuredVerlet final : public SpringSolver {
     for (long i = 0; i < n_; ++i) fixed_[i] = system.fixed[i] ? 1 : 0;
     rows_ = static_cast<long>(shape.ny) * shape.nz;
     // Tiles of whole rows: slabs of planes (a slab re-evaluates the forward springs of the plane
-    // before it) x strips of about 24 rows (a strip re-evaluates the pushes of the rows on both
-    // sides), about 4 slabs per thread against the shared machine's other work. Strips keep a
-    // task's positions and accumulators in the second-level cache. The result does not depend
-    // on the tiles.
+    // before it: 9 of the 13 model-26 directions, one plane a slab) x strips of at most 25 rows
+    // (a strip re-evaluates the pushes of the rows on both sides: 9 springs a plane), 2 slabs per
+    // thread. Strips keep a task's positions and accumulators in the second-level cache. At
+    // 100^3 on 2 threads that is 4 x 4 tiles of 25 x 25 rows (8 per thread), about 5.8 % of the
+    // springs evaluated twice, against 9.3 % with the 8 x 5 tiles of 13 x 20 rows used before
+    // (3-4 % less one-thread processor time, docs/BENCHMARKS.md, 2026-11-22 06:50 UTC). The
+    // result does not depend on the tiles.
     const long threads = std::max(1, tbb::this_task_arena::max_concurrency());
-    slab_ = std::max(2L, (shape.nz + 4 * threads - 1) / (4 * threads));
+    slab_ = std::max(2L, (shape.nz + 2 * threads - 1) / (2 * threads));
     strip_ = shape.ny;
-    if (shape.ny > 32) strip_ = (shape.ny + (shape.ny + 23) / 24 - 1) / ((shape.ny + 23) / 24);
+    if (shape.ny > 32) strip_ = (shape.ny + (shape.ny + 24) / 25 - 1) / ((shape.ny + 24) / 25);
     // Small lattices run as one task: TBB's overhead per task is larger than their iteration.
     if (n_ < 32768) {
       slab_ = shape.nz;
