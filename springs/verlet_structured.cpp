@@ -248,6 +248,7 @@ struct FusedRow {
   double au, bu;
   const std::uint8_t* fixed;
   long nx;
+  long stride;  // from one row to the next in every array (nx rounded up to a multiple of 8)
   bool integrate, write;
   bool power;  // sum f . v (the momentum solver's restart test); else the power is left 0
 };
@@ -334,7 +335,7 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
   // time, measured on one thread with and without).
   long ahead = 0;
   for (int d = 0; d < r.directions; ++d) ahead = std::max(ahead, r.offset[d]);
-  ahead += 2 * nx;
+  ahead += 2 * r.stride;
   const long along_offset = r.along_x >= 0 ? r.offset[r.along_x] : 0;
   const double* along_k = r.along_x >= 0 ? r.k[r.along_x] : nullptr;
   const double along_ku = r.along_x >= 0 ? r.ku[r.along_x] : 0.0;
@@ -347,7 +348,7 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     const __m512d s[3] = {load8(row_mask, x[0] + i), load8(row_mask, x[1] + i), load8(row_mask, x[2] + i)};
     for (int c = 0; c < 3; ++c) {
       _mm_prefetch(reinterpret_cast<const char*>(x[c] + i + ahead), _MM_HINT_T0);
-      _mm_prefetch(reinterpret_cast<const char*>(r.p[c] + i + nx), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(r.p[c] + i + r.stride), _MM_HINT_T0);
     }
     __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
     __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
@@ -505,9 +506,10 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
       store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
     }
   };
-  // The next row's pointers: nx further on (null ones stay null).
-  auto advance = [nx](auto*& pointer) {
-    if (pointer) pointer += nx;
+  // The next row's pointers: one stride further on (null ones stay null).
+  const long stride = r.stride;
+  auto advance = [stride](auto*& pointer) {
+    if (pointer) pointer += stride;
   };
   for (long row = 0; row < rows; ++row) {
     for (int c = 0; c < 3; ++c) {
@@ -540,7 +542,7 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     }
     if (row + 1 == rows) break;
     for (int c = 0; c < 3; ++c) {
-      x[c] += nx;
+      x[c] += stride;
       advance(r.p[c]);
       advance(r.ring[c]);
     }
@@ -626,11 +628,18 @@ class StructuredVerlet final : public SpringSolver {
         coefficients_(momentum ? momentum_coefficients(system) : verlet_coefficients(system, options)),
         shape_(shape), stiffness_(std::move(stiffness)), momentum_(momentum) {
     n_ = static_cast<long>(system.positions.size());
+    rows_ = static_cast<long>(shape.ny) * shape.nz;
+    // Rows padded to a multiple of 8 points: with the 64-byte aligned arrays every row, and so
+    // every vector of the AVX-512 path, starts on a cache line (a vector split over two lines
+    // costs two accesses). The padding points are never read into a result: the vector loads
+    // past a row's end are masked, the other loops stop at nx.
+    stride_ = (static_cast<long>(shape.nx) + 7) / 8 * 8;
+    padded_n_ = stride_ * rows_;
     const auto& dirs = half_offsets(shape.model);
     directions_ = static_cast<int>(dirs.size());
     for (int d = 0; d < directions_; ++d) {
       dir_[d] = dirs[d];
-      offset_[d] = dirs[d][0] + static_cast<long>(shape.nx) * (dirs[d][1] + static_cast<long>(shape.ny) * dirs[d][2]);
+      offset_[d] = dirs[d][0] + stride_ * (dirs[d][1] + static_cast<long>(shape.ny) * dirs[d][2]);
     }
     if (directions_ == kMaxDirections) {
       // Model-26: the 12 directions off the row in groups of one target row (dy, dz), slots by
@@ -648,13 +657,17 @@ class StructuredVerlet final : public SpringSolver {
       }
     }
     for (int c = 0; c < 3; ++c) {
-      x_[c].resize(n_);
-      p_[c].resize(n_);
-      for (long i = 0; i < n_; ++i) x_[c][i] = p_[c][i] = system.positions[i][c];
+      x_[c].assign(padded_n_, 0.0);
+      p_[c].assign(padded_n_, 0.0);
+      for (long i = 0; i < n_; ++i) x_[c][padded(i)] = p_[c][padded(i)] = system.positions[i][c];
     }
-    fixed_.resize(n_);
-    for (long i = 0; i < n_; ++i) fixed_[i] = system.fixed[i] ? 1 : 0;
-    rows_ = static_cast<long>(shape.ny) * shape.nz;
+    fixed_.assign(padded_n_, 1);  // padding: fixed
+    for (long i = 0; i < n_; ++i) fixed_[padded(i)] = system.fixed[i] ? 1 : 0;
+    for (auto& k : stiffness_) k = padded_copy(k, 0.0);  // padding: no spring
+    // Per-point coefficients (momentum: b may hold one value); padding takes the row's first
+    // point's value, so uniform coefficients stay uniform.
+    for (std::vector<double>* v : {&coefficients_.a, &coefficients_.b, &coefficients_.mass})
+      if (static_cast<long>(v->size()) == n_ && n_ > 0) *v = padded_copy(*v, NAN);
     // Tiles of whole rows: slabs of planes (a slab re-evaluates the forward springs of the plane
     // before it: 9 of the 13 model-26 directions, one plane a slab) x strips of at most 25 rows
     // (a strip re-evaluates the pushes of the rows on both sides: 9 springs a plane), 2 slabs per
@@ -682,7 +695,7 @@ class StructuredVerlet final : public SpringSolver {
     row_has_fixed_.assign(rows_, 0);
     for (long row = 0; row < rows_; ++row)
       for (int i = 1; i + 1 < shape.nx; ++i)
-        if (fixed_[row * shape.nx + i]) row_has_fixed_[row] = 1;
+        if (fixed_[row * stride_ + i]) row_has_fixed_[row] = 1;
     row_energy_.assign(rows_, 0.0);
     detect_uniform();
     if (momentum_) uniform_ab_ = true;  // one a for every point, b set each step
@@ -722,7 +735,7 @@ class StructuredVerlet final : public SpringSolver {
     const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
-        const long base = row * nx, j = row % ny, k = row / ny;
+        const long base = row * stride_, j = row % ny, k = row / ny;
         const double* __restrict x = x_[0].data() + base;
         const double* __restrict y = x_[1].data() + base;
         const double* __restrict z = x_[2].data() + base;
@@ -760,7 +773,10 @@ class StructuredVerlet final : public SpringSolver {
 
   std::vector<Vec3> positions() const override {
     std::vector<Vec3> out(n_);
-    for (long i = 0; i < n_; ++i) out[i] = Vec3(x_[0][i], x_[1][i], x_[2][i]);
+    for (long i = 0; i < n_; ++i) {
+      const long q = padded(i);
+      out[i] = Vec3(x_[0][q], x_[1][q], x_[2][q]);
+    }
     return out;
   }
   std::string backend() const override {
@@ -770,6 +786,17 @@ class StructuredVerlet final : public SpringSolver {
   double mean_damping() const override { return coefficients_.mean_damping; }
 
  private:
+  // Index of lattice point i (build_lattice order) in the padded arrays.
+  long padded(long i) const { return i % shape_.nx + stride_ * (i / shape_.nx); }
+  // A per-point array in the padded layout; padding points get `pad` (NaN: the row's first value).
+  std::vector<double> padded_copy(const std::vector<double>& v, double pad) const {
+    std::vector<double> out(static_cast<std::size_t>(padded_n_), pad);
+    for (long row = 0; row < rows_; ++row)
+      for (long i = 0; i < stride_; ++i)
+        out[row * stride_ + i] = i < shape_.nx ? v[row * shape_.nx + i] : std::isnan(pad) ? v[row * shape_.nx] : pad;
+    return out;
+  }
+
   // A lattice is uniform when every direction's springs share one stiffness to 1e-12 relative
   // (regular lattices: the rest lengths differ only by rounding); a, b are uniform when every
   // point has the same. Interior rows then read scalars instead of 3 or 13 stiffness arrays and
@@ -777,13 +804,13 @@ class StructuredVerlet final : public SpringSolver {
   // change of at most 1e-12 relative, far below any solver tolerance.
   void detect_uniform() {
     uniform_ab_ = n_ > 0;
-    for (long i = 1; i < n_ && uniform_ab_; ++i)
+    for (long i = 1; i < padded_n_ && uniform_ab_; ++i)
       uniform_ab_ = coefficients_.a[i] == coefficients_.a[0] && coefficients_.b[i] == coefficients_.b[0];
     uniform_k_ = n_ > 0;
     for (int d = 0; d < directions_ && uniform_k_; ++d) {
       double lo = std::numeric_limits<double>::infinity(), hi = 0.0, sum = 0.0;
       long count = 0;
-      for (long i = 0; i < n_; ++i) {
+      for (long i = 0; i < padded_n_; ++i) {
         const double k = stiffness_[d][i];
         if (k == 0.0) continue;  // no spring (neighbour outside)
         lo = std::min(lo, k);
@@ -797,7 +824,7 @@ class StructuredVerlet final : public SpringSolver {
     if (!uniform_k_) return;
     // The checked boundary path reads the arrays: give them the same values.
     for (int d = 0; d < directions_; ++d)
-      for (long i = 0; i < n_; ++i)
+      for (long i = 0; i < padded_n_; ++i)
         if (stiffness_[d][i] != 0.0) stiffness_[d][i] = k_uniform_[d];
   }
 
@@ -806,7 +833,7 @@ class StructuredVerlet final : public SpringSolver {
   // around the tile (only pushes; `forward_only`: only the directions into the next plane).
   FusedRow fused_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
     const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
-    const long j = r % ny, k = r / ny, base = r * nx;
+    const long j = r % ny, k = r / ny, base = r * stride_;
     FusedRow f;
     for (int c = 0; c < 3; ++c) {
       f.x[c] = x_[c].data() + base;
@@ -839,6 +866,7 @@ class StructuredVerlet final : public SpringSolver {
     f.bu = coefficients_.b.empty() ? 0.0 : coefficients_.b[0];  // momentum: b holds one value
     f.fixed = fixed_.data() + base;
     f.nx = nx;
+    f.stride = stride_;
     f.integrate = integrate;
     f.write = write;
     f.power = momentum_;  // only the momentum solver reads power_
@@ -922,7 +950,7 @@ class StructuredVerlet final : public SpringSolver {
     tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
       for (long row = range.begin(); row != range.end(); ++row) {
         const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
-        const long base = row * nx;
+        const long base = row * stride_;
         std::uint64_t largest = 0;
         double power = 0.0;
         auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
@@ -961,7 +989,7 @@ class StructuredVerlet final : public SpringSolver {
     const long ny = shape_.ny;
     tbb::parallel_for(tbb::blocked_range<long>(0, slabs_ * strips_, 1), [&](const tbb::blocked_range<long>& range) {
       Ring& ring = rings_.local();
-      ring.reset(ny, shape_.nx);
+      ring.reset(ny, stride_);
       for (long task = range.begin(); task != range.end(); ++task) {
         Tile tile;
         tile.k0 = (task / strips_) * slab_;
@@ -1002,7 +1030,7 @@ class StructuredVerlet final : public SpringSolver {
   VerletCoefficients coefficients_;
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
-  long n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
+  long n_ = 0, stride_ = 1, padded_n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
   bool simd_ = false;  // AVX-512 path (structured_simd_active at construction), else gather
   std::vector<char> row_has_fixed_;
   tbb::enumerable_thread_specific<Ring> rings_;
