@@ -3,8 +3,10 @@
 // Data: struct of arrays (x, y, z; previous x, y, z), one stiffness array per half direction
 // (3 for model-6, 13 for model-26; stiffness 1 / rest length, so the rest length is 1 / k and
 // the force of a spring is (k - 1 / |l|) l), per-point coefficients a = dt^2 / m and
-// b = 1 - c dt / m, fixed flags. Neighbours are implicit: the spring from p in half direction d
-// ends at p + offset[d].
+// b = 1 - c dt / m, fixed flags. Every array stores its rows padded to a multiple of 8 points
+// from a 64-byte boundary (so every vector of 8 points lies in one cache line); padding points
+// are fixed, without springs, and never read into a result. Neighbours are implicit: the spring
+// from p in half direction d ends at p + offset[d].
 //
 // Every spring is evaluated once, from its first end, and its force pushed to both ends: +f to
 // the first, -f to the other. The half directions only point forward in the row order (row =
@@ -25,7 +27,8 @@
 // dx = -1 springs are evaluated in the lane of their target, so only their force on the source
 // is shifted between lanes, once for the four groups. The rows of a tile with every spring run
 // their vectors without masks, and software prefetch brings the positions of the next plane's
-// rows and the previous positions ahead of the loads.
+// rows and the previous positions ahead of the loads. The rows of a plane of a tile that are
+// alike (all but the strip's first and last) run as one call, their set-up made once.
 //
 // This path needs AVX-512: a row is one loop written with intrinsics (fused_rows_avx512_t: own
 // springs summed in registers, integration in the same pass) and takes 1 / sqrt from
