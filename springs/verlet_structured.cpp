@@ -60,6 +60,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 #include <type_traits>
 #include <utility>
 
@@ -88,6 +89,9 @@ bool structured_simd_active() {
 namespace {
 
 constexpr int kMaxDirections = 13;
+// Model-26: the group of the springs into the row (j + 1, k + 1) (FusedRow::group; the order of
+// half_offsets puts it last, checked at construction).
+constexpr int kFirstPushGroup = 3;
 
 // Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
 // above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
@@ -429,9 +433,14 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
               _mm512_alignr_epi64(_mm512_castpd_si512(fp), _mm512_castpd_si512(group_carry[g][c]), 7));
           group_carry[g][c] = fp;
           const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_fmadd_pd(w0, l0[c], up));
+          // The group (dy, dz) = (1, 1) makes the first push into its target row (see sweep):
+          // 0 - sum is stored without reading the row (the same bits as a zeroed row's).
           double* target = r.group_push[g][c] + i;
-          if (Kind == 0) store8(row_mask, target, _mm512_sub_pd(load8(row_mask, target), sum));
-          else _mm512_storeu_pd(target, _mm512_sub_pd(_mm512_loadu_pd(target), sum));
+          const bool first = g == kFirstPushGroup;
+          if (Kind == 0)
+            store8(row_mask, target, _mm512_sub_pd(first ? _mm512_setzero_pd() : load8(row_mask, target), sum));
+          else
+            _mm512_storeu_pd(target, _mm512_sub_pd(first ? _mm512_setzero_pd() : _mm512_loadu_pd(target), sum));
         }
       }
       // own = along and dx = 0 + dx = +1 + the forces on the next point (dx = -1 sources, minus
@@ -605,8 +614,8 @@ using AlignedDoubles = std::vector<double, LineAligned<double>>;
 
 // Accumulators of one task: two planes of ny rows of nx forces per coordinate (plane k and
 // k + 1, alternating; nx here the padded row length); a task touches only the rows of its strip.
-// Model-6: all zero between tiles, each row zeroed as its pushes are read; model-26: each row
-// zeroed before the pushes into it (zero).
+// Model-6: all zero between tiles, each row zeroed as its pushes are read; model-26: the first
+// push into a row overwrites it, rows without one are zeroed (zero; see sweep).
 struct Ring {
   AlignedDoubles f[3];
   long ny = 0, nx = 0;
@@ -668,6 +677,8 @@ class StructuredVerlet final : public SpringSolver {
         if (g == groups) key[groups++] = kd;
         group_[g][dx + 1] = d;
       }
+      if (groups != 4 || key[kFirstPushGroup] != 1 + 3L * 1)
+        throw std::logic_error("structured Verlet: unexpected order of the model-26 directions");
     }
     for (int c = 0; c < 3; ++c) {
       x_[c].assign(padded_n_, 0.0);
@@ -1022,14 +1033,19 @@ class StructuredVerlet final : public SpringSolver {
           if (tile.j1 < ny) process_rows(ring, r0 + tile.j1, 1, tile, false, forward_only, write);
         };
         // Model-6: the ring is all zero here and stays so (see the integration in
-        // fused_rows_avx512_t); model-26: rows zeroed before their first push.
-        const bool zero = directions_ == kMaxDirections;
-        if (zero)
-          for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * tile.k0);
+        // fused_rows_avx512_t). Model-26: the first push into row (j, k + 1) is the one of row
+        // (j - 1, k) in group (1, 1), which stores instead of adding (rows go in index order, the
+        // row before the strip included, and nothing pushes into k + 1 from plane k - 1), so
+        // only the rows without such a push are zeroed: row 0 of each plane (j0 = 0) and the
+        // slab's first plane when there is no plane before it.
+        const bool model26 = directions_ == kMaxDirections;
+        if (model26 && tile.k0 == 0)
+          for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j);
+        else if (model26 && tile.j0 == 0)
+          ring.zero(ny * tile.k0);
         if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
         for (long k = tile.k0; k < tile.k1; ++k) {
-          if (zero && k + 1 < tile.k1)
-            for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j + ny * (k + 1));
+          if (model26 && tile.j0 == 0 && k + 1 < tile.k1) ring.zero(ny * (k + 1));
           plane(k, true, false);
         }
       }
