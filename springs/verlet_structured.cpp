@@ -54,6 +54,7 @@
 #endif
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -92,6 +93,8 @@ constexpr int kMaxDirections = 13;
 // Model-26: the group of the springs into the row (j + 1, k + 1) (FusedRow::group; the order of
 // half_offsets puts it last, checked at construction).
 constexpr int kFirstPushGroup = 3;
+// Model-6: the direction (0, 0, 1) (half_offsets order, checked at construction).
+constexpr int kModel6FirstPush = 2;
 
 // Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
 // above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
@@ -474,8 +477,11 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
         for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
         if (r.push[d][0]) {
           for (int c = 0; c < 3; ++c) {
+            // The direction (0, 0, 1) makes the only push from plane k into row (j, k + 1), the
+            // first (see sweep): stored without reading the row (the same bits as a zeroed row's).
             double* target = r.push[d][c] + i + r.dx[d];
-            store8(m, target, _mm512_fnmadd_pd(w, l[c], load8(m, target)));
+            const __m512d before = d == kModel6FirstPush ? _mm512_setzero_pd() : load8(m, target);
+            store8(m, target, _mm512_fnmadd_pd(w, l[c], before));
           }
         }
       }
@@ -484,16 +490,9 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     if (!r.integrate) return;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
     // lane coming in at lane 0 (model-26: already in own, above).
-    // Model-6: the pushes are read and their row zeroed for its next use (two planes on): a ring
-    // row is pushed into only while its row is in the task's tile, and every such row is
-    // integrated, so the ring is all zero again after each tile. (Padding lanes: never pushed,
-    // zero; the row and i are multiples of 8, so the whole vector is stored on one line.) 5-10 %
-    // less one-thread processor time at 100^3 than zeroing each row before its plane; model-26
-    // was 0.3-2 % slower that way and zeroes the rows before their plane (sweep).
     __m512d force[3];
     for (int c = 0; c < 3; ++c) {
       const __m512d pushed = load8(row_mask, r.ring[c] + i);
-      if constexpr (Directions != kMaxDirections) _mm512_store_pd(r.ring[c] + i, _mm512_setzero_pd());
       if constexpr (Directions == kMaxDirections) {
         force[c] = _mm512_add_pd(pushed, own[c]);
       } else {
@@ -614,8 +613,7 @@ using AlignedDoubles = std::vector<double, LineAligned<double>>;
 
 // Accumulators of one task: two planes of ny rows of nx forces per coordinate (plane k and
 // k + 1, alternating; nx here the padded row length); a task touches only the rows of its strip.
-// Model-6: all zero between tiles, each row zeroed as its pushes are read; model-26: the first
-// push into a row overwrites it, rows without one are zeroed (zero; see sweep).
+// The first push into a row overwrites it, rows without one are zeroed (zero; see sweep).
 struct Ring {
   AlignedDoubles f[3];
   long ny = 0, nx = 0;
@@ -679,6 +677,8 @@ class StructuredVerlet final : public SpringSolver {
       }
       if (groups != 4 || key[kFirstPushGroup] != 1 + 3L * 1)
         throw std::logic_error("structured Verlet: unexpected order of the model-26 directions");
+    } else if (dir_[kModel6FirstPush] != std::array<int, 3>{0, 0, 1}) {
+      throw std::logic_error("structured Verlet: unexpected order of the model-6 directions");
     }
     for (int c = 0; c < 3; ++c) {
       x_[c].assign(padded_n_, 0.0);
@@ -1032,14 +1032,13 @@ class StructuredVerlet final : public SpringSolver {
           if (tile.j1 - tile.j0 > 1) process_rows(ring, r0 + tile.j1 - 1, 1, tile, integrate, forward_only, write);
           if (tile.j1 < ny) process_rows(ring, r0 + tile.j1, 1, tile, false, forward_only, write);
         };
-        // Model-6: the ring is all zero here and stays so (see the integration in
-        // fused_rows_avx512_t). Model-26: the first push into row (j, k + 1) is the one of row
-        // (j - 1, k) in group (1, 1), which stores instead of adding (rows go in index order, the
-        // row before the strip included, and nothing pushes into k + 1 from plane k - 1), so
-        // only the rows without such a push are zeroed: row 0 of each plane (j0 = 0) and the
-        // slab's first plane when there is no plane before it.
+        // The first push into row (j, k + 1) stores instead of adding: model-6 the one of row
+        // (j, k) in direction (0, 0, 1), model-26 the one of row (j - 1, k) in group (1, 1) (rows
+        // go in index order, the row before the strip included, and nothing pushes into k + 1
+        // from plane k - 1). Only rows without such a push are zeroed: the first plane of the
+        // lattice (no plane before it) and, model-26, row 0 of each plane.
         const bool model26 = directions_ == kMaxDirections;
-        if (model26 && tile.k0 == 0)
+        if (tile.k0 == 0)
           for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j);
         else if (model26 && tile.j0 == 0)
           ring.zero(ny * tile.k0);
