@@ -241,7 +241,7 @@ const RowFunction kRows[2][2][2][2] = {
 struct FusedRow {
   const double* x[3];               // the row's positions (index i = point i of the row)
   double* p[3];                     // the row's previous positions, overwritten with the new ones
-  double* ring[3];                  // the row's accumulated pushes (zeroed once read)
+  const double* ring[3];            // the row's accumulated pushes
   int directions;
   bool valid[kMaxDirections];       // the direction's target row exists (and is used)
   int dx[kMaxDirections];
@@ -300,7 +300,7 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(_
 }
 
 // `rows` consecutive rows of one plane (r the first) whose springs, targets and pushes are alike
-// (the same directions valid and pushed): every pointer of the next row is nx further on, so
+// (the same directions valid and pushed): every pointer of the next row is one stride on, so
 // the set-up (the FusedRow, the groups' offsets and stiffness) is made once for the run. Row t's
 // largest squared force (bits) and power go to largest_out[t] and power_out[t].
 template <int Directions>
