@@ -16,7 +16,7 @@
 /// muscle beyond it without fibres (the top tenth 94 % uncovered, coverage p95 2.34). For landmark
 /// areas the centre is therefore moved towards the region's far end: the vertex farthest from the
 /// other area among those at least `landmark_centre_keep` of the deepest vertex's distance from
-/// the border (fibres then start at the muscle's end: coverage p95 1.70; docs/BENCHMARKS.md,
+/// the border (fibres then start at the muscle's end: coverage p95 1.60; docs/BENCHMARKS.md,
 /// "LHDL landmark regions centred towards their far ends"). A pole frame (fibres/pole_frame.h:
 /// rotation + Moebius map) sends the muscle's origin centre to the north pole and its insertion
 /// centre to the south pole, exactly; the template's frame is a rotation. In the pole frames a
@@ -96,9 +96,13 @@ struct PlacementOptions {
   bool even_perimeter = false;
   /// Landmark areas only: the centre of each region is the region vertex farthest (in space) from
   /// the other area's centroid among those at least this share of the largest distance from the
-  /// region's border (on the sphere), in (0, 1] (default 0.5; 1: the vertex farthest from the
-  /// border, the rule for automatic areas).
-  double landmark_centre_keep = 0.5;
+  /// region's border (on the sphere), in (0, 1] (default 0.35; 1: the vertex farthest from the
+  /// border, the rule for automatic areas). On the LHDL matrix without the psoas, 0.35 passes 15
+  /// of 15 muscle and template pairs, 0.5 passes 14 (gluteus maximus with rectus: coverage p95
+  /// 2.03); 0.7 leaves the centre too deep in the strip. The psoas folds with either (more than
+  /// with 1: 1411 / 1231 / 1155 inverted cells over its five templates with 0.35 / 0.5 / 1;
+  /// docs/BENCHMARKS.md, "LHDL landmark regions centred towards their far ends").
+  double landmark_centre_keep = 0.35;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
