@@ -333,7 +333,8 @@ void add_batch_command(CLI::App& app) {
   for (const char* name : {"--template", "--fibres", "--resolution", "--model", "--solver", "--tolerance",
                            "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest", "--corner-twist",
                            "--even-perimeter", "--retry", "--retry-max-inverted", "--landmark-strip",
-                           "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius"}) {
+                           "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius",
+                           "--landmark-centre-keep"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

@@ -156,6 +156,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--max-face-depth", o.placement.max_face_depth,
                   "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
       ->capture_default_str();
+  cmd->add_option("--landmark-centre-keep", o.placement.landmark_centre_keep,
+                  "Landmark areas: the face centre is the region point farthest from the other area among those at "
+                  "least this share of the deepest point's distance from the region's border (1: the deepest)")
+      ->capture_default_str();
   cmd->add_option("--corner-twist", o.placement.corner_twist_deg,
                   "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
       ->capture_default_str();

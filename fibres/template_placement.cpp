@@ -69,9 +69,11 @@ std::vector<char> region_of(const TriangleMesh& mesh, const AttachmentArea& area
 }
 
 // The region vertex farthest (angle on the sphere) from the region's border (non-region
-// vertices next to it): a centre inside the region even when it is not convex.
-Vec3 region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, const std::vector<char>& in,
-                   const std::string& name) {
+// vertices next to it): a centre inside the region even when it is not convex. With `away` and
+// `keep` < 1, the vertex farthest from the point `away` among those at least `keep` times that
+// largest distance from the border.
+int region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, const std::vector<char>& in,
+                  const std::string& name, const Vec3* away = nullptr, double keep = 1.0) {
   std::vector<char> border(mesh.positions.size(), 0);
   for (const Triangle& t : mesh.triangles)
     for (int c = 0; c < 3; ++c) {
@@ -99,7 +101,24 @@ Vec3 region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, co
     }
   }
   if (best < 0) throw InputError(ErrorCode::landmarks, name + " area has no vertex on the muscle");
-  return sphere[static_cast<std::size_t>(best)];
+  if (keep >= 1.0 || away == nullptr) return best;
+  // Towards the far end of the region: among the vertices at least `keep` of the largest
+  // border distance from the border, the one farthest (in space) from `away`.
+  const double deepest = std::acos(std::clamp(best_cos, -1.0, 1.0));
+  int chosen = best;
+  double chosen_distance = (mesh.positions[static_cast<std::size_t>(best)] - *away).norm();
+  for (std::size_t v = 0; v < in.size(); ++v) {
+    if (!in[v]) continue;
+    double max_cos = -1.0;
+    for (const Vec3& b : border_points) max_cos = std::max(max_cos, sphere[v].dot(b));
+    if (std::acos(std::clamp(max_cos, -1.0, 1.0)) < keep * deepest) continue;
+    const double d = (mesh.positions[v] - *away).norm();
+    if (d > chosen_distance) {
+      chosen_distance = d;
+      chosen = static_cast<int>(v);
+    }
+  }
+  return chosen;
 }
 
 // Star radius R(phi) of a region around the north pole of a frame, sampled in `bins` azimuths.
@@ -229,6 +248,8 @@ void PlacementOptions::validate() const {
     throw OptionError("face_shrink_rounds: must be in 0..100, got " + std::to_string(face_shrink_rounds));
   if (!(min_band > 0.0 && min_band < 3.0))
     throw OptionError("min_band: must be in (0, 3), got " + std::to_string(min_band));
+  if (!(landmark_centre_keep > 0.0 && landmark_centre_keep <= 1.0))
+    throw OptionError("landmark_centre_keep: must be in (0, 1], got " + std::to_string(landmark_centre_keep));
   if (!(corner_twist_deg >= -180.0 && corner_twist_deg <= 180.0))
     throw OptionError("corner_twist_deg: must be in [-180, 180], got " + std::to_string(corner_twist_deg));
 }
@@ -237,6 +258,8 @@ nlohmann::json PlacementReport::to_json() const {
   return {{"origin_region_vertices", origin_region_vertices},
           {"insertion_region_vertices", insertion_region_vertices},
           {"centre_angle_deg", centre_angle_deg},
+          {"origin_centre", {origin_centre.x(), origin_centre.y(), origin_centre.z()}},
+          {"insertion_centre", {insertion_centre.x(), insertion_centre.y(), insertion_centre.z()}},
           {"moebius_scale", moebius_scale},
           {"twist_deg", {twist_deg, twist_end_deg}},
           {"origin_radius_deg", {origin_radius_min_deg, origin_radius_max_deg}},
@@ -261,9 +284,23 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   const std::vector<char> insertion_in = region_of(muscle, areas.insertion, radius);
   report.origin_region_vertices = static_cast<int>(std::count(origin_in.begin(), origin_in.end(), 1));
   report.insertion_region_vertices = static_cast<int>(std::count(insertion_in.begin(), insertion_in.end(), 1));
-  const Vec3 origin_centre = region_centre(muscle, sphere, origin_in, "origin (" + areas.origin.source + ")");
-  const Vec3 insertion_centre =
-      region_centre(muscle, sphere, insertion_in, "insertion (" + areas.insertion.source + ")");
+  // Landmark areas: each centre towards the end of its region away from the other area.
+  const auto centroid = [](const AttachmentArea& area) {
+    Vec3 c = Vec3::Zero();
+    for (const SurfacePoint& p : area.points) c += p.position;
+    return area.points.empty() ? c : Vec3(c / static_cast<double>(area.points.size()));
+  };
+  const Vec3 origin_centroid = centroid(areas.origin), insertion_centroid = centroid(areas.insertion);
+  const bool toward_end = !areas.automatic && options.landmark_centre_keep < 1.0;
+  const int origin_vertex = region_centre(muscle, sphere, origin_in, "origin (" + areas.origin.source + ")",
+                                          toward_end ? &insertion_centroid : nullptr, options.landmark_centre_keep);
+  const int insertion_vertex =
+      region_centre(muscle, sphere, insertion_in, "insertion (" + areas.insertion.source + ")",
+                    toward_end ? &origin_centroid : nullptr, options.landmark_centre_keep);
+  const Vec3 origin_centre = sphere[static_cast<std::size_t>(origin_vertex)];
+  const Vec3 insertion_centre = sphere[static_cast<std::size_t>(insertion_vertex)];
+  report.origin_centre = muscle.positions[static_cast<std::size_t>(origin_vertex)];
+  report.insertion_centre = muscle.positions[static_cast<std::size_t>(insertion_vertex)];
   report.centre_angle_deg =
       std::atan2(origin_centre.cross(insertion_centre).norm(), origin_centre.dot(insertion_centre)) * 180.0 / kPi;
   if (report.centre_angle_deg < 1e-6)

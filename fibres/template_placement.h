@@ -10,7 +10,14 @@
 /// antipodal. On the muscle's sphere map (a bijection, morph/sphere_map.h) each attachment area
 /// becomes a region: the vertices within `region_radius` (of the muscle length) of an area point.
 /// Its centre is the region vertex farthest (on the sphere) from the region's border, so that it
-/// lies inside the region even when the region is not convex. A pole frame (fibres/pole_frame.h:
+/// lies inside the region even when the region is not convex. A landmark area can be a long strip
+/// running down the side of the muscle (LHDL gluteus medius: its origin landmarks span 0.54-1.00
+/// of the principal axis); centred in the middle of the strip, the face leaves the end of the
+/// muscle beyond it without fibres (the top tenth 94 % uncovered, coverage p95 2.34). For landmark
+/// areas the centre is therefore moved towards the region's far end: the vertex farthest from the
+/// other area among those at least `landmark_centre_keep` of the deepest vertex's distance from
+/// the border (fibres then start at the muscle's end: coverage p95 1.60; docs/BENCHMARKS.md,
+/// "LHDL landmark regions centred towards their far ends"). A pole frame (fibres/pole_frame.h:
 /// rotation + Moebius map) sends the muscle's origin centre to the north pole and its insertion
 /// centre to the south pole, exactly; the template's frame is a rotation. In the pole frames a
 /// point has polar angle theta and azimuth phi; the correspondence keeps phi (up to a twist that
@@ -87,6 +94,15 @@ struct PlacementOptions {
   /// corpus muscles the other passes, and 2 others: docs/BENCHMARKS.md, "Decompose",
   /// 2026-11-21 21:24-21:30).
   bool even_perimeter = false;
+  /// Landmark areas only: the centre of each region is the region vertex farthest (in space) from
+  /// the other area's centroid among those at least this share of the largest distance from the
+  /// region's border (on the sphere), in (0, 1] (default 0.35; 1: the vertex farthest from the
+  /// border, the rule for automatic areas). On the LHDL matrix without the psoas, 0.35 passes 15
+  /// of 15 muscle and template pairs, 0.5 passes 14 (gluteus maximus with rectus: coverage p95
+  /// 2.03); 0.7 leaves the centre too deep in the strip. The psoas folds with either (more than
+  /// with 1: 1411 / 1231 / 1155 inverted cells over its five templates with 0.35 / 0.5 / 1;
+  /// docs/BENCHMARKS.md, "LHDL landmark regions centred towards their far ends").
+  double landmark_centre_keep = 0.35;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
@@ -95,6 +111,8 @@ struct PlacementOptions {
 struct PlacementReport {
   int origin_region_vertices = 0, insertion_region_vertices = 0;
   double centre_angle_deg = 0.0;   ///< angle between the two region centres on the muscle sphere
+  Vec3 origin_centre = Vec3::Zero();     ///< the origin region's centre on the muscle (a vertex)
+  Vec3 insertion_centre = Vec3::Zero();  ///< ... and the insertion region's
   double moebius_scale = 1.0;      ///< scale of the muscle's pole frame (median area at the equator)
   double twist_deg = 0.0;          ///< azimuth of the template's r axis at the origin face
   double twist_end_deg = 0.0;      ///< ... and at the insertion face (it varies along the band)

@@ -174,6 +174,78 @@ double ring_spacing_ratio(const springs::Lattice& lattice, const Placement& plac
 
 }  // namespace
 
+TEST_CASE("a landmark strip down the side is centred towards the muscle's end", "[fibres][placement]") {
+  // The capsule (z from -5 to 5 over its caps, the cylinder from -3.5 to 3.5). The origin
+  // landmarks run down its side from the middle (z = 0) over the top cap to its tip, as the LHDL
+  // gluteus medius's do (from 0.5 to 1 of the length); the
+  // insertion is a disk on the bottom cap. Centred in the middle of its region (the automatic
+  // areas' rule, landmark_centre_keep = 1) the origin face sits halfway down the strip; by
+  // default it moves to the far end of the strip, near the top.
+  const TriangleMesh mesh = capsule();
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  std::vector<Vec3> origin, insertion;
+  for (double z = 0.0; z < 3.5; z += 0.1) origin.emplace_back(1.5, 0.0, z);
+  for (double a = 0.0; a <= 90.0; a += 4.0) {
+    const double r = a * 3.14159265358979323846 / 180.0;
+    origin.emplace_back(1.5 * std::cos(r), 0.0, 3.5 + 1.5 * std::sin(r));
+  }
+  for (double x = -0.4; x <= 0.41; x += 0.1)
+    for (double y = -0.4; y <= 0.41; y += 0.1) insertion.emplace_back(x, y, -5.0);
+  const Attachments areas = landmark_attachments(mesh, origin, "side.xyz", insertion, "bottom.xyz");
+  springs::LatticeOptions lo;
+  lo.nr = 8;
+  lo.ns = 8;
+  lo.resolution = 12;
+  const springs::Lattice lattice = springs::build_lattice(lo);
+  PlacementOptions middle;
+  middle.landmark_centre_keep = 1.0;
+  const PlacementOptions towards_end;
+  REQUIRE(towards_end.landmark_centre_keep < 1.0);
+  const Placement before = place_template(mesh, map.positions, locator, areas, lattice, middle);
+  const Placement after = place_template(mesh, map.positions, locator, areas, lattice, towards_end);
+  const auto face_z = [&](const Placement& placement) {
+    double z = 0.0;
+    int count = 0;
+    for (int j = 0; j < lattice.ny; ++j)
+      for (int i = 0; i < lattice.nx; ++i) {
+        z += placement.points[static_cast<std::size_t>(lattice.index(i, j, 0))].position.z();
+        ++count;
+      }
+    return z / count;
+  };
+  CAPTURE(before.report.origin_centre.transpose(), after.report.origin_centre.transpose(), face_z(before),
+          face_z(after));
+  CHECK(before.report.origin_centre.z() < 3.0);
+  CHECK(after.report.origin_centre.z() > 4.0);
+  // The origin face's points follow it up the muscle, past the end of the cylinder.
+  CHECK(face_z(before) < 3.0);
+  CHECK(face_z(after) > 3.5);
+  // Each centre is a vertex of its region: within the region radius of an area point.
+  const double radius = towards_end.region_radius * muscle_length(mesh);
+  const auto nearest = [](const AttachmentArea& area, const Vec3& p) {
+    double d = 1e300;
+    for (const SurfacePoint& s : area.points) d = std::min(d, (s.position - p).norm());
+    return d;
+  };
+  CHECK(nearest(areas.origin, after.report.origin_centre) <= radius);
+  CHECK(nearest(areas.insertion, after.report.insertion_centre) <= radius);
+
+  // Automatic areas keep the rule of the deepest vertex: the option changes nothing there.
+  const Attachments automatic = automatic_attachments(mesh);
+  const Placement a = place_template(mesh, map.positions, locator, automatic, lattice, middle);
+  const Placement b = place_template(mesh, map.positions, locator, automatic, lattice, towards_end);
+  REQUIRE(a.points.size() == b.points.size());
+  for (std::size_t q = 0; q < a.points.size(); ++q) CHECK(a.points[q].position == b.points[q].position);
+
+  PlacementOptions bad;
+  bad.landmark_centre_keep = 0.0;
+  CHECK_THROWS_WITH(bad.validate(), Catch::Contains("landmark_centre_keep"));
+  bad.landmark_centre_keep = 1.5;
+  CHECK_THROWS_WITH(bad.validate(), Catch::Contains("landmark_centre_keep"));
+}
+
 TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[fibres][placement]") {
   // The flat capsule of the case above (semi-axes 3 and 0.6). By the sphere map's azimuths the
   // lattice corners crowd into the thin edges (their sides subtend the least angle there, and
