@@ -258,7 +258,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   };
   // One attempt: rounds of (local, then wider) untangling and soft containment. With
   // `free_ends` the fibre ends may give way too (into the muscle, or along the surface), held
-  // by soft pins at the places the cast gave them: a cell against an end face can need that.
+  // by ball pins round their areas (or soft pins at their cast places without areas): a cell
+  // against an end face can need that. With `free_ring` the surface ring may slide along the
+  // surface as well.
   int budget = options.iterations;
   auto attempt = [&](bool free_ends, bool free_ring) {
     std::vector<UntangleAnchor> anchors;
