@@ -201,6 +201,14 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--end-anchor-weight", o.untangle.end_anchor_weight,
                   "Untangling: weight of the soft pins holding the fibre ends at their cast places")
       ->capture_default_str();
+  cmd->add_option("--untangle-free-ring", o.untangle.free_ring,
+                  "Untangling: free the surface ring with the fibre ends (held just under the surface, sliding along "
+                  "it) so that the rings next to a hooked end can turn")
+      ->capture_default_str();
+  cmd->add_option("--end-area-margin", o.untangle.end_area_margin,
+                  "Untangling: farthest a freed fibre end may lie from its attachment area, as a share of the muscle "
+                  "length (0: within the end shift of its cast place)")
+      ->capture_default_str();
   cmd->add_flag("--keep-failed", args->keep_failed,
                 "Write the fibres even when they fail the check, for inspection (the exit code is still 19)");
   cmd->callback([args] { run_decompose(*args); });

@@ -650,7 +650,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
   // containment.
   if (options.untangle_cells) {
-    const LatticeUntangleReport untangled = untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle);
+    const LatticeUntangleReport untangled =
+        untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas);
     pinned += static_cast<int>(untangled.pinned);
     outside = outside_free_points(system, query);
     report.untangle = untangled.to_json();

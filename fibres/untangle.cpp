@@ -164,8 +164,20 @@ class Energy {
       const int s = slot_[static_cast<std::size_t>(a.point)];
       if (s < 0) continue;
       const Vec3 d = positions_[static_cast<std::size_t>(a.point)] - a.target;
-      e += a.weight * d.squaredNorm();
-      if (g) g->segment<3>(3 * s) += 2.0 * a.weight * d;
+      if (a.normal.squaredNorm() > 0.0) {  // half-space: only the offset along the normal
+        const double along = a.normal.dot(d);
+        if (along <= 0.0 && a.one_sided) continue;
+        e += a.weight * along * along;
+        if (g) g->segment<3>(3 * s) += 2.0 * a.weight * along * a.normal;
+      } else if (a.radius > 0.0) {  // ball: only the distance beyond the radius
+        const double r = d.norm();
+        if (r <= a.radius) continue;
+        e += a.weight * (r - a.radius) * (r - a.radius);
+        if (g) g->segment<3>(3 * s) += 2.0 * a.weight * (r - a.radius) / r * d;
+      } else {
+        e += a.weight * d.squaredNorm();
+        if (g) g->segment<3>(3 * s) += 2.0 * a.weight * d;
+      }
     }
     return e;
   }
@@ -325,7 +337,8 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       if (v < 0 || static_cast<std::size_t>(v) >= positions.size())
         throw Error(ErrorCode::internal, "untangle: tetrahedron vertex " + std::to_string(v) + " out of range");
   for (const UntangleAnchor& a : anchors)
-    if (a.point < 0 || static_cast<std::size_t>(a.point) >= positions.size() || !(a.weight >= 0.0) || !a.target.allFinite())
+    if (a.point < 0 || static_cast<std::size_t>(a.point) >= positions.size() || !(a.weight >= 0.0) ||
+        !a.target.allFinite() || !(a.radius >= 0.0) || !a.normal.allFinite())
       throw Error(ErrorCode::internal, "untangle: bad anchor of point " + std::to_string(a.point));
   for (const Vec3& p : positions)
     if (!p.allFinite()) throw Error(ErrorCode::internal, "untangle: a point is not finite");

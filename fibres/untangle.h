@@ -79,11 +79,20 @@ struct UntangleTet {
 
 /// A soft pin: the energy gains weight |x_point - target|^2 (a zero-length spring), so that a
 /// point can be held near a place (e.g. just inside the muscle) and still give way where the
-/// cells need it.
+/// cells need it. Two one-sided kinds: with a `radius` > 0 only the distance beyond it counts,
+/// weight max(0, |x - target| - radius)^2 (a ball the point may move in freely: a fibre end
+/// near its attachment area); with a unit `normal` only the part of the offset along the normal
+/// counts, weight max(0, normal . (x - target))^2 (a half-space: a point outside the muscle is
+/// pushed under the tangent plane and may slide along it).
 struct UntangleAnchor {
   int point = 0;
   Vec3 target = Vec3::Zero();
   double weight = 0.0;  ///< energy per squared length unit, >= 0
+  double radius = 0.0;  ///< free ball round the target, >= 0 (default 0: a zero-length spring)
+  Vec3 normal = Vec3::Zero();  ///< unit outward normal of a half-space pin (default zero: not one)
+  /// With a normal: only the side outside counts (true: a half-space) or both (false: the point is
+  /// held on the plane through the target and may slide along it) (default true).
+  bool one_sided = true;
 };
 
 /// What untangle() did.

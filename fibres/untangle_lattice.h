@@ -10,17 +10,23 @@
 /// steps of a folded cell move), then the whole lattice; a wider region that frees no more points
 /// is skipped. The first attempt holds the fibre ends and starts from the settled lattice (enough
 /// where the folds are local, and cheap); while cells stay folded, a second starts again from the
-/// settled lattice with the ends free (soft pins at their cast places, at most `end_shift` of the
-/// muscle length from them: a cell against an end face can need that), and a third goes on from
-/// there with the ends held; the result with the fewest folded cells stays. Containment is part
-/// of every attempt: a point moved outside gets a soft pin just inside (stronger each round); an
-/// attempt stops when a round does not fold fewer cells than the rounds before it (or, when asked,
-/// after `contact_stall_rounds` rounds in a row that did not leave fewer points outside). At the end a
-/// point still outside is fixed just inside and the cells around it are untangled again with it
-/// fixed (`pin_rounds`; undone when that does not fold fewer cells), so that no step after the
-/// untangling moves a lattice point and the pins do not fold cells behind the untangling's back.
+/// settled lattice with the ends free and the surface ring free (free_ring: each ring point held
+/// on a plane just under the surface, sliding along it; each end free within a ball round the
+/// nearest point of its attachment area, end_area_margin, or without areas held by a soft pin at
+/// its cast place, at most `end_shift` of the muscle length from it), and a third goes on from
+/// there with the ends and the ring held. Containment is part of every attempt: a point moved
+/// outside gets a soft pin under the tangent plane at its closest surface point (stronger each
+/// round, sliding_contact); an attempt stops when a round does not fold fewer cells than the
+/// rounds before it (or, when asked, after `contact_stall_rounds` rounds in a row that did not
+/// leave fewer points outside). Each attempt is then finished: a point still outside is fixed just
+/// inside (at the shallowest depth that folds none of its cells, pin_search) and the cells around
+/// it are untangled again with it fixed (`pin_rounds`; undone when that does not fold fewer
+/// cells), so that no step after the untangling moves a lattice point and the pins do not fold
+/// cells behind the untangling's back. The attempt with the fewest folded cells after its pins
+/// stays.
 #include "fibres/untangle.h"
 #include "geometry/mesh.h"
+#include "morph/attachments.h"
 #include "morph/surface_query.h"
 #include "springs/lattice.h"
 
@@ -45,9 +51,39 @@ struct LatticeUntangleOptions {
   /// (default 0.0095: with the cast ends within 0.01 of an area point, the ends stay within 0.02
   /// of their areas, the check's limit).
   double end_shift = 0.0095;
+  /// The free-ends attempt frees the surface ring too (the lattice lines round the fibres, which
+  /// the placement put on the surface): each ring point is held by a soft pin on a plane just
+  /// under the surface (see ring_depth) and may slide along it, so that the rings next to a hooked
+  /// end can turn with the layers inside them (true); or the ring stays where the settle put it
+  /// (false) (default true: with it the opendihu biceps tracer unfolds, docs/BENCHMARKS.md "Folds
+  /// next to hooked ends").
+  bool free_ring = true;
+  /// Depth of a free ring point's plane under its closest surface point, in local lattice
+  /// spacings, [0, 1) (default 0.1: with 0 more interior points were pushed out; with 0.3 the
+  /// coverage p95 of the three bent muscles rose to 2.0-2.5).
+  double ring_depth = 0.1;
+  /// Weight of a free ring point's plane pin, per squared local spacing, > 0 (default 120).
+  double ring_weight = 120.0;
+  /// With attachment areas given: how far a fibre end may lie from the nearest point of its area,
+  /// as a share of the muscle length, [0, 1); while the ends are free they move without cost
+  /// within 0.8 of it (a ball round the nearest area point, renewed each round) and are put back
+  /// onto it at the end, instead of within `end_shift` of their cast places; 0 = the cast-place
+  /// rule (default 0.015: under the check's 0.02, so that an end the clamp leaves at the limit
+  /// still passes; next to a hooked tendon end the unfolded end layer needs its ends farther from
+  /// their cast places than end_shift allows, docs/BENCHMARKS.md "Folds next to hooked ends").
+  double end_area_margin = 0.015;
   /// Weight of the first soft pin of a point moved outside, per squared local spacing (4x each
   /// round), > 0 (default 30).
   double contact_weight = 30.0;
+  /// Containment pins as half-spaces (the point is pushed under the tangent plane at its closest
+  /// surface point, `contact_depth` deep, and may slide along it) (true) or as zero-length springs
+  /// to that point (false) (default true).
+  bool sliding_contact = true;
+  /// The pins at the end put a point still outside at the shallowest of a few depths under the
+  /// closest surface point (0.02 to `contact_depth` local spacings) that folds none of its cells,
+  /// else at the one that folds the fewest (true), or always `contact_depth` deep (false)
+  /// (default true).
+  bool pin_search = true;
   /// Containment rounds of an attempt (soft pins, untangle again), >= 0 (default 6).
   int contact_rounds = 6;
   /// An attempt's containment rounds stop after this many rounds in a row that did not leave
@@ -69,12 +105,14 @@ struct LatticeUntangleOptions {
 
 /// What untangle_lattice() did.
 struct LatticeUntangleReport {
-  nlohmann::json runs = nlohmann::json::array();  ///< one entry per untangle() run (its report, radius, round...)
+  /// One entry per untangle() run (its report, radius, round...), and after each attempt one with
+  /// its name (`attempt`) and the folded tetrahedra left after its pins (`finished`).
+  nlohmann::json runs = nlohmann::json::array();
   long inverted_before = 0;   ///< counted folded tetrahedra of the settled lattice
   long inverted_left = 0;     ///< and at the end
   int budget_left = 0;        ///< iterations left to the last attempt
-  long pinned = 0;            ///< points fixed just inside at the end of an attempt
-  std::string kept;           ///< the attempt kept: held_ends, free_ends or free_then_held_ends
+  long pinned = 0;            ///< points fixed just inside at the end of the kept attempt
+  std::string kept;           ///< the attempt kept: held_ends, free_ends, free_then_held_ends, free_ring or free_ring_then_held_ends
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
   /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells).
@@ -110,11 +148,13 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 /// flags; the springs are used only to find a point's neighbours and local spacing; points after
 /// lattice.point_count() are anchors and stay). The fibre ends (layers t = 0 and t = 1, interior
 /// lines) are fixed on entry and on return. `query` is the muscle's surface, `muscle_length` its
-/// length (fibres/fibre_check.h, muscle_length()). Method: see the file comment. On return the
-/// interior lattice points that were outside are fixed just inside, and `inverted_left` counts the
-/// folded tetrahedra after those pins. Throws OptionError for bad options.
+/// length (fibres/fibre_check.h, muscle_length()), `areas` (may be null) the attachment areas the
+/// fibre ends belong to (origin: layer t = 0, insertion: t = 1; see end_area_margin). Method: see
+/// the file comment. On return the interior lattice points that were outside are fixed just
+/// inside, and `inverted_left` counts the folded tetrahedra after those pins. Throws OptionError
+/// for bad options.
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
                                        const SurfaceQuery& query, double muscle_length,
-                                       const LatticeUntangleOptions& options = {});
+                                       const LatticeUntangleOptions& options = {}, const Attachments* areas = nullptr);
 
 }  // namespace fascicle

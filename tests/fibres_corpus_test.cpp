@@ -72,7 +72,12 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Measured on 2026-11-22 00:53-01:06 UTC (docs/BENCHMARKS.md,
+  // Floors, not the goal (every muscle). Measured on 2026-11-22 07:16-07:21 UTC (docs/BENCHMARKS.md,
+  // "Decompose", "Folds next to hooked ends"; the untangling's free-ring attempt): 45 of 47 pass
+  // every criterion, 45 have no inverted cell, 46 have coverage p95 <= 2 (the opendihu left biceps,
+  // which fails with 77 inverted cells, has 2.19), 106 inverted cells in all (LHDL psoas 29, left
+  // biceps 77; the biceps tracer passes). The untangling's attempts are sensitive to round-off,
+  // so the total's floor has more room than the others'. Measured on 2026-11-22 00:53-01:06 UTC (docs/BENCHMARKS.md,
   // "Decompose", "Face rims cast with the fibre ends"): 44 of 47 pass every criterion, 44 have no
   // inverted cell, 47 have coverage p95 <= 2, 642 inverted cells in all (LHDL psoas 196, opendihu
   // biceps tracer 135, left biceps 311; the left biceps's first try varied between 199 and 313
@@ -83,8 +88,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // the second try for every failing muscle 713, 21:15 UTC, for 18 s more batch wall time); at
   // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below each (the total:
   // about 4 % above), for a different processor's rounding.
-  CHECK(passed >= 43);
-  CHECK(unfolded >= 43);
-  CHECK(covered >= 46);
-  CHECK(inverted <= 670);
+  CHECK(passed >= 44);
+  CHECK(unfolded >= 44);
+  CHECK(covered >= 45);
+  CHECK(inverted <= 130);
 }

@@ -35,7 +35,12 @@ TEST_CASE("a psoas's narrow ends: face rims cast with the fibre ends leave no fo
   const std::string muscle = test::data_dir() + "/muscles/visible-human/VHF_Left/VHF_Left_Muscle_PsoasMajor_smooth.stl";
   test::TempDir with_dir, without_dir;
   const nlohmann::json with = decompose_report(muscle, with_dir.path().string(), "");
-  const nlohmann::json without = decompose_report(muscle, without_dir.path().string(), "--cast-rim false");
+  // Without the rims cast, with the surface ring held in the untangling: since 2026-11-22 the
+  // untangling's free-ring attempt opens these folds too (0 inverted cells with the rims left;
+  // 7 with the ring held, 46 with the ends also kept near their cast places: docs/BENCHMARKS.md,
+  // "Folds next to hooked ends"), so the ring is held here to show what the cast rims do.
+  const nlohmann::json without =
+      decompose_report(muscle, without_dir.path().string(), "--cast-rim false --untangle-free-ring false");
   INFO(with["settle"]["cast_faces"].dump());
   // Both faces are shrunk by the depth rule, far below their regions.
   CHECK(with["placement"]["face_scale"][0].get<double>() < 0.2);

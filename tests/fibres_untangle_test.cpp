@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 #include <Eigen/LU>
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <set>
 #include <tbb/global_control.h>
@@ -136,6 +137,51 @@ TEST_CASE("untangle: uncounted tetrahedra do not stop it; anchors pull", "[fibre
   CHECK(u.counted == 0);
   CHECK(u.untangled());  // nothing counted, nothing to do
   CHECK(u.uncounted_inverted_after > 0);
+}
+
+TEST_CASE("untangle: ball and plane pins pull only where they should", "[fibres][untangle]") {
+  // One point of an unfolded grid, pinned 0.05 along x from where it is, with each kind of pin.
+  auto moved = [](UntangleAnchor anchor) {
+    Grid g = make_grid(5);
+    const int q = g.index(2, 2, 2);
+    const Vec3 start = g.positions[static_cast<std::size_t>(q)];
+    anchor.point = q;
+    anchor.target = start + Vec3(0.05, 0.0, 0.0);
+    anchor.weight = 1e4;
+    const UntangleReport r = untangle(g.positions, g.fixed, g.tets, {}, {anchor});
+    CHECK(r.untangled());
+    return Vec3(g.positions[static_cast<std::size_t>(q)] - start);
+  };
+  UntangleAnchor spring;
+  const Vec3 by_spring = moved(spring);
+  CHECK(by_spring.x() > 0.025);
+  // A ball round the target that holds the point already: no pull.
+  UntangleAnchor ball;
+  ball.radius = 0.06;
+  CHECK(moved(ball).norm() < 1e-6);
+  // A smaller ball: pulled to its rim at most (0.05 - 0.04 = 0.01 along x).
+  ball.radius = 0.04;
+  const Vec3 by_ball = moved(ball);
+  CHECK(by_ball.x() > 0.002);
+  CHECK(by_ball.x() < 0.0101);
+  // A half-space whose outward normal is -x: the point lies outside it (x below the target's) and
+  // is pushed along x only; with the normal +x it is inside: no pull.
+  UntangleAnchor half;
+  half.normal = Vec3(-1.0, 0.0, 0.0);
+  const Vec3 by_half = moved(half);
+  CHECK(by_half.x() > 0.025);
+  CHECK(std::abs(by_half.y()) < 0.1 * by_half.x());  // along the normal (the cells pull a little across)
+  half.normal = Vec3(1.0, 0.0, 0.0);
+  CHECK(moved(half).norm() < 1e-6);
+  // A two-sided plane pulls from either side.
+  half.one_sided = false;
+  CHECK(moved(half).x() > 0.025);
+  // A plane with the normal along y holds the point where it is (it lies on the plane's x offset
+  // only): no pull along x.
+  UntangleAnchor across;
+  across.normal = Vec3(0.0, 1.0, 0.0);
+  across.one_sided = false;
+  CHECK(moved(across).norm() < 1e-6);
 }
 
 TEST_CASE("untangle: with nothing inverted, soft pins are followed by the polish alone (direct_polish)",
@@ -363,6 +409,8 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
   options.retry_alternative = false;  // this case is about the untangling of one placement
   options.cast_rim = false;           // the face rims as when the case was found (cast, they
                                       // leave nothing outside to pin here: 2026-11-22)
+  options.untangle.sliding_contact = false;  // the containment pins as when the case was found
+                                             // (sliding, they bring every point in here)
   const Decomposition d = decompose(soup, {}, options);
   const nlohmann::json u = d.report.to_json()["untangle"];
   INFO(u.dump());

@@ -1,0 +1,52 @@
+// Folds next to bent tendon ends (decompose step 8, fibres/untangle_lattice.h): whole end layers
+// of the opendihu biceps tracer turn over, and with the surface ring held where the settle put it
+// no untangling opens them (136 inverted cells on 2026-11-22 before the free-ring attempt). The
+// attempt that frees the surface ring with the fibre ends (each ring point held just under the
+// surface and sliding along it, each end free within its attachment area's margin) unfolds them;
+// docs/BENCHMARKS.md, "Folds next to hooked ends".
+#include "tests/test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+
+using namespace fascicle;
+
+namespace {
+
+nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir, const std::string& extra) {
+  const std::string report = out_dir + "/m.json";
+  const int code = test::run_command(test::program() + " -q decompose " + muscle + " -o " + out_dir +
+                                     "/m.vtk --report " + report + " --keep-failed --retry false " + extra +
+                                     " 2>/dev/null");
+  INFO(muscle << " " << extra);
+  CHECK((code == 0 || code == 19));
+  std::ifstream in(report);
+  REQUIRE(in.good());
+  return nlohmann::json::parse(in);
+}
+
+}  // namespace
+
+TEST_CASE("a biceps's bent ends: the untangling with the surface ring free leaves no folded cell",
+          "[fibres][untangle][corpus][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  const std::string muscle = test::data_dir() + "/muscles/opendihu/biceps_full_streamline_tracer.stl";
+  test::TempDir with_dir, without_dir;
+  const nlohmann::json with = decompose_report(muscle, with_dir.path().string(), "");
+  const nlohmann::json without = decompose_report(muscle, without_dir.path().string(), "--untangle-free-ring false");
+  INFO("with: " << with["untangle"]["kept"] << " " << with["quality"].dump());
+  INFO("without: " << without["untangle"]["kept"] << " " << without["quality"].dump());
+  // The attempts with the ring held leave cells folded: the kept attempt is a free-ring one.
+  CHECK(without["quality"]["inverted_cells"].get<long>() > 0);
+  const std::string kept = with["untangle"]["kept"].get<std::string>();
+  CHECK((kept == "free_ring" || kept == "free_ring_then_held_ends"));
+  CHECK(with["quality"]["inverted_cells"].get<long>() == 0);
+  CHECK(with["status"] == "ok");
+  CHECK(with["quality"]["inside_fraction"].get<double>() == 1.0);
+  CHECK(with["quality"]["coverage"]["p95"].get<double>() <= 2.0);
+  // The freed ends stay within the margin of their areas (0.015 of the length, under the check's 0.02).
+  CHECK(with["quality"]["attachment"]["origin_max"].get<double>() <= 0.015 + 1e-9);
+  CHECK(with["quality"]["attachment"]["insertion_max"].get<double>() <= 0.015 + 1e-9);
+}
