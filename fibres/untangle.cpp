@@ -361,9 +361,7 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     double best_min_det = now.min_det;
     long best_inverted = now.inverted;
     int stalled = 0;
-    // Nothing inverted (only soft pins pull): no stages, the polish below follows the pins.
-    const bool stages = !(options.direct_polish && before.inverted == 0);
-    for (int stage = 0; stages && stage < options.max_stages; ++stage) {
+    for (int stage = 0; stage < options.max_stages; ++stage) {
       report.iterations += minimise(energy, x, eps, options.stage_iterations, options.history);
       ++report.stages;
       report.eps = eps;
@@ -389,7 +387,7 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     if (now.inverted == 0 && options.polish_iterations > 0) {
       // Improve the shapes with the barrier in force (a small eps keeps every det positive).
       const std::vector<Vec3> untangled = positions;
-      const double polish_eps = stages ? std::min(report.eps, 1e-8) : 1e-8;
+      const double polish_eps = std::min(report.eps, 1e-8);
       report.iterations += minimise(energy, x, polish_eps, options.polish_iterations, options.history);
       const Census polished = census(positions, tets, options.min_det);
       if (polished.inverted == 0) now = polished;

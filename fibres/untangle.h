@@ -45,13 +45,6 @@ struct UntangleOptions {
   /// left 2 cells of VHF vastus lateralis folded: 43 corpus muscles passed instead of 44
   /// (docs/BENCHMARKS.md, "Merged 2026-11-22").
   double min_sigma = 0.1;
-  /// Where no counted tetrahedron is inverted on entry (the run only follows soft pins, e.g. the
-  /// containment pins of fibres/untangle_lattice.h), skip the eps stages and only polish with the
-  /// barrier in force (true), or run the stages first (false) (default false: on the LHDL gluteus
-  /// maximus the containment rounds took 30 iterations each instead of 70 with the same quality,
-  /// but in the corpus VHF left vastus intermedius kept 7 inverted cells, 43 muscles passed instead
-  /// of 44, docs/BENCHMARKS.md, "Untangling: energy terms in blocks").
-  bool direct_polish = false;
   int polish_iterations = 30;  ///< iterations after the last tetrahedron turned positive, >= 0 (default 30)
   /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
   /// (default 1e-4: well clear of the round-off limit of the quality check).
