@@ -711,6 +711,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   return out;
 }
 
+// Whether the attempt's untangling ran its attempts with the surface ring free (those with it
+// held left folds).
+bool free_ring_tried(const DecomposeReport& r) {
+  return r.untangle.is_object() && r.untangle.value("free_ring_tried", false);
+}
+
 // The start of an entry of the report's `attempts`: what the attempt changed.
 nlohmann::json attempt_header(const std::string& change, const DecomposeOptions& options) {
   return {{"change", change},
@@ -731,6 +737,7 @@ nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& o
   j["inverted_cells"] = q.inverted_cells;
   j["coverage_p95"] = q.coverage.p95;
   j["attachment_max"] = std::max(q.attachment.origin_max, q.attachment.insertion_max);
+  j["free_ring_tried"] = free_ring_tried(r);
   j["seconds"] = r.seconds;
   return j;
 }
@@ -802,22 +809,33 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
-  // Inverted cells of the first try of the current sequence (the strips', then the disks').
+  // Inverted cells of the first try of the current sequence (the strips', then the disks'), and
+  // whether its folds outlasted the untangling with the surface ring freed.
   long first_inverted = best.report.quality.inverted_cells;
+  const auto ring_freed = [](const Decomposition& d) {
+    return d.report.quality.inverted_cells > 0 && free_ring_tried(d.report);
+  };
+  bool first_ring_freed = ring_freed(best);
   for (const RetryStep& step : retry_plan(options, landmarks.given())) {
     const std::string& change = step.change;
     const DecomposeOptions& retry = step.options;
     if (best.report.quality.pass) break;
-    if (step.gated && first_inverted > options.retry_max_inverted_cells) {
-      attempts.push_back({{"change", change},
-                          {"status", "skipped"},
-                          {"why", "the first result has more than retry_max_inverted_cells (" +
-                                      std::to_string(options.retry_max_inverted_cells) + ") inverted cells"}});
+    if (step.gated && (first_inverted > options.retry_max_inverted_cells || first_ring_freed)) {
+      attempts.push_back(
+          {{"change", change},
+           {"status", "skipped"},
+           {"why", first_inverted > options.retry_max_inverted_cells
+                       ? "the first result has more than retry_max_inverted_cells (" +
+                             std::to_string(options.retry_max_inverted_cells) + ") inverted cells"
+                       : "the first result's folds outlasted the untangling with the surface ring free"}});
       continue;
     }
     try {
       Decomposition d = decompose_attempt(muscle, query, landmarks, retry);
-      if (step.starts_sequence) first_inverted = d.report.quality.inverted_cells;
+      if (step.starts_sequence) {
+        first_inverted = d.report.quality.inverted_cells;
+        first_ring_freed = ring_freed(d);
+      }
       attempts.push_back(attempt_json(change, retry, d.report));
       seconds += d.report.seconds;
       if (better_result(d.report.quality, best.report.quality)) {

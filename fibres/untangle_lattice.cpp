@@ -42,7 +42,7 @@ void LatticeUntangleOptions::validate() const {
 nlohmann::json LatticeUntangleReport::to_json() const {
   return {{"runs", runs},         {"inverted_before", inverted_before}, {"inverted_left", inverted_left},
           {"budget_left", budget_left}, {"pinned", pinned},             {"kept", kept},
-          {"stops", stops},             {"iterations", iterations}};
+          {"stops", stops},             {"iterations", iterations}, {"free_ring_tried", free_ring_tried}};
 }
 
 std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
@@ -550,6 +550,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     if (inverted_left > 0) run_from(free_result, false, false, "free_then_held_ends");
   }
   if (inverted_left > 0 && options.free_ring) {
+    report.free_ring_tried = true;
     run_from(settled, true, true, "free_ring");
     if (inverted_left > 0) run_from(free_result, false, false, "free_ring_then_held_ends");
   }

@@ -113,6 +113,8 @@ struct LatticeUntangleReport {
   int budget_left = 0;        ///< iterations left to the last attempt
   long pinned = 0;            ///< points fixed just inside at the end of the kept attempt
   std::string kept;           ///< the attempt kept: held_ends, free_ends, free_then_held_ends, free_ring or free_ring_then_held_ends
+  /// Whether the attempts with the surface ring free ran (the attempts with it held left folds).
+  bool free_ring_tried = false;
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
   /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells).
