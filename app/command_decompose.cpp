@@ -187,7 +187,8 @@ void add_decompose_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--retry-max-inverted", o.retry_max_inverted_cells,
                   "Skip the retries with the alternative placement and with the rims left when the first result has more "
-                  "inverted cells than this")
+                  "inverted cells than this (they are also skipped when its folds outlasted the untangling with the "
+                  "surface ring free)")
       ->capture_default_str();
   cmd->add_option("--contact-depth-min", o.contact_depth_min,
                   "Depth (local spacings) of the containment target of a point only just outside the muscle")

@@ -119,7 +119,9 @@ struct DecomposeOptions {
   /// took 40 s of the batch's 233 s of processor time; results with 2-47 were retried and two of
   /// them then passed; docs/BENCHMARKS.md, "Decompose". The rims left, gated too since
   /// 2026-11-22: after first results with 136, 196 and 313 folded cells they gave 134, 203 and
-  /// 311 for 40 s of processor time; the one muscle they rescue had 3).
+  /// 311 for 40 s of processor time; the one muscle they rescue had 3). Skipped too, whatever
+  /// this value, when the first result's folds outlasted the untangling with the surface ring
+  /// free (LatticeUntangleReport::free_ring_tried; LHDL psoas: 29 cells, retries 70 and 65).
   long retry_max_inverted_cells = 50;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
