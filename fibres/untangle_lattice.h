@@ -10,11 +10,13 @@
 /// steps of a folded cell move), then the whole lattice; a wider region that frees no more points
 /// is skipped. The first attempt holds the fibre ends and starts from the settled lattice (enough
 /// where the folds are local, and cheap); while cells stay folded, a second starts again from the
-/// settled lattice with the ends free and the surface ring free (free_ring: each ring point held
-/// on a plane just under the surface, sliding along it; each end free within a ball round the
-/// nearest point of its attachment area, end_area_margin, or without areas held by a soft pin at
-/// its cast place, at most `end_shift` of the muscle length from it), and a third goes on from
-/// there with the ends and the ring held. Containment is part of every attempt: a point moved
+/// settled lattice with the ends free (each end free within a ball round the nearest point of its
+/// attachment area, end_area_margin, or without areas held by a soft pin at its cast place, at
+/// most `end_shift` of the muscle length from it), and a third goes on from there with the ends
+/// held. While cells still stay folded, the last two run again with the surface ring free too
+/// (free_ring: each ring point held on a plane just under the surface, sliding along it; the ring
+/// is freed only after the attempts with it held, since a freed ring changes the coverage of
+/// muscles the held ring already unfolds). Containment is part of every attempt: a point moved
 /// outside gets a soft pin under the tangent plane at its closest surface point (stronger each
 /// round, sliding_contact); an attempt stops when a round does not fold fewer cells than the
 /// rounds before it (or, when asked, after `contact_stall_rounds` rounds in a row that did not
