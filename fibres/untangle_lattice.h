@@ -53,8 +53,9 @@ struct LatticeUntangleOptions {
   /// (default 0.0095: with the cast ends within 0.01 of an area point, the ends stay within 0.02
   /// of their areas, the check's limit).
   double end_shift = 0.0095;
-  /// The free-ends attempt frees the surface ring too (the lattice lines round the fibres, which
-  /// the placement put on the surface): each ring point is held by a soft pin on a plane just
+  /// When the attempts with the surface ring held (the lattice lines round the fibres, which the
+  /// placement put on the surface) leave folds, the free-ends attempt and the held-ends one after
+  /// it run again with the ring free: each ring point is held by a soft pin on a plane just
   /// under the surface (see ring_depth) and may slide along it, so that the rings next to a hooked
   /// end can turn with the layers inside them (true); or the ring stays where the settle put it
   /// (false) (default true: with it the opendihu biceps tracer unfolds, docs/BENCHMARKS.md "Folds
