@@ -4,30 +4,14 @@
 // attempt that frees the surface ring with the fibre ends (each ring point held just under the
 // surface and sliding along it, each end free within its attachment area's margin) unfolds them;
 // docs/BENCHMARKS.md, "Folds next to hooked ends".
+#include "tests/decompose_run.h"
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
-#include <nlohmann/json.hpp>
-
-#include <fstream>
 
 using namespace fascicle;
 
-namespace {
-
-nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir, const std::string& extra) {
-  const std::string report = out_dir + "/m.json";
-  const int code = test::run_command(test::program() + " -q decompose " + muscle + " -o " + out_dir +
-                                     "/m.vtk --report " + report + " --keep-failed --retry false " + extra +
-                                     " 2>/dev/null");
-  INFO(muscle << " " << extra);
-  CHECK((code == 0 || code == 19));
-  std::ifstream in(report);
-  REQUIRE(in.good());
-  return nlohmann::json::parse(in);
-}
-
-}  // namespace
+using test::decompose_report;
 
 TEST_CASE("a biceps's bent ends: the untangling with the surface ring free leaves no folded cell",
           "[fibres][untangle][corpus][slow]") {

@@ -4,30 +4,14 @@
 // inside the cast fibre ends and the cells between them fold, which the untangling with the ends
 // held cannot open (VHF psoas: 72 inverted cells with the rim left, 0 with it cast; measured
 // 2026-11-22, docs/BENCHMARKS.md, "Decompose", "Face rims cast with the fibre ends").
+#include "tests/decompose_run.h"
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
-#include <nlohmann/json.hpp>
-
-#include <fstream>
 
 using namespace fascicle;
 
-namespace {
-
-nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir, const std::string& extra) {
-  const std::string report = out_dir + "/m.json";
-  const int code = test::run_command(test::program() + " -q decompose " + muscle + " -o " + out_dir +
-                                     "/m.vtk --report " + report + " --keep-failed --retry false " + extra +
-                                     " 2>/dev/null");
-  INFO(muscle << " " << extra);
-  CHECK((code == 0 || code == 19));
-  std::ifstream in(report);
-  REQUIRE(in.good());
-  return nlohmann::json::parse(in);
-}
-
-}  // namespace
+using test::decompose_report;
 
 TEST_CASE("a psoas's narrow ends: face rims cast with the fibre ends leave no folded cell",
           "[fibres][decompose][corpus][slow]") {
