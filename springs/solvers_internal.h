@@ -69,12 +69,17 @@ std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,
                                                      const LatticeShape& shape, bool momentum = false);
-/// Whether structured solvers built from now on may use the AVX-512 spring loop (default true;
-/// tests switch it off to check the portable loop against it). Takes effect only where the
-/// processor has AVX-512.
+/// Whether structured solvers built from now on may use a vector spring loop (default true; tests
+/// switch it off to check the portable loop against it): the AVX-512 one where the processor has
+/// AVX-512, else the AVX2 one where it has AVX2 and FMA (springs/fused_row.h).
 void set_structured_simd(bool enabled);
-/// True when a structured solver built now would use the AVX-512 spring loop.
+/// Whether that vector loop may be the AVX-512 one (default true; tests switch it off so that the
+/// AVX2 loop runs on processors with AVX-512 too).
+void set_structured_avx512(bool enabled);
+/// True when a structured solver built now would use a vector spring loop.
 bool structured_simd_active();
+/// The spring loop a structured solver built now would use: "avx512", "avx2" or "plain".
+const char* structured_simd_name();
 
 std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
                                                  const SettleOptions& options);

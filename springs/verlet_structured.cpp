@@ -30,17 +30,19 @@
 // rows and the previous positions ahead of the loads. The rows of a plane of a tile that are
 // alike (all but the strip's first and last) run as one call, their set-up made once.
 //
-// This path needs AVX-512: a row is one loop written with intrinsics (fused_rows_avx512_t: own
-// springs summed in registers, integration in the same pass) and takes 1 / sqrt from
-// VRSQRT14PD refined by one third-order step (relative error below about 6e-13). Elsewhere (or
-// after set_structured_simd(false)) the portable gather path runs: every spring evaluated from
-// both ends with a square root and a division, vectorised by the compiler (sweep_gather). Both
-// are deterministic; they differ from each other by rounding. When
+// This path needs a vector loop written with intrinsics: a row is one loop (own springs summed
+// in registers, integration in the same pass). With AVX-512 (fused_rows_avx512_t) it takes
+// 1 / sqrt from VRSQRT14PD refined by one third-order step (relative error below about 6e-13);
+// with AVX2 and FMA, the same loop 4 points a vector (springs/verlet_rows_avx2.cpp: VRSQRTPS,
+// fourth-order step). Elsewhere (or after set_structured_simd(false)) the portable gather path
+// runs: every spring evaluated from both ends with a square root and a division, vectorised by
+// the compiler (sweep_gather). All are deterministic; they differ from each other by rounding. When
 // every direction's springs share one stiffness and every point the same coefficients, the rows
 // read scalars instead of those arrays (detect_uniform). The same kernels run the momentum
 // static solver (per-step b, gradient restarts).
 
 #include "geometry/errors.h"
+#include "springs/fused_row.h"
 #include "springs/solvers_internal.h"
 
 #include <tbb/blocked_range.h>
@@ -75,26 +77,33 @@ namespace fascicle::springs::detail {
 
 namespace {
 std::atomic<bool> g_simd_enabled{true};
+std::atomic<bool> g_avx512_enabled{true};
 }
 
 void set_structured_simd(bool enabled) { g_simd_enabled = enabled; }
+void set_structured_avx512(bool enabled) { g_avx512_enabled = enabled; }
 
-bool structured_simd_active() {
+namespace {
+// The vector loop a structured solver built now would take: 2 AVX-512, 1 AVX2, 0 none.
+int simd_level() {
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
-  return g_simd_enabled && __builtin_cpu_supports("avx512f");
+  if (!g_simd_enabled) return 0;
+  if (g_avx512_enabled && __builtin_cpu_supports("avx512f")) return 2;
+  return avx2_rows_supported() ? 1 : 0;
 #else
-  return false;
+  return 0;
 #endif
+}
+}  // namespace
+
+bool structured_simd_active() { return simd_level() > 0; }
+
+const char* structured_simd_name() {
+  static const char* const names[] = {"plain", "avx2", "avx512"};
+  return names[simd_level()];
 }
 
 namespace {
-
-constexpr int kMaxDirections = 13;
-// Model-26: the group of the springs into the row (j + 1, k + 1) (FusedRow::group; the order of
-// half_offsets puts it last, checked at construction).
-constexpr int kFirstPushGroup = 3;
-// Model-6: the direction (0, 0, 1) (half_offsets order, checked at construction).
-constexpr int kModel6FirstPush = 2;
 
 // Largest of non-negative doubles or NaN, as unsigned bit patterns: every NaN (either sign) is
 // above +Inf, which is above every finite value, so the maximum is order-independent and a NaN
@@ -110,7 +119,7 @@ inline double double_of(std::uint64_t u) {
   return v;
 }
 
-// The portable path (processors without AVX-512, or set_structured_simd(false)): the gather
+// The portable path (processors without AVX2, or set_structured_simd(false)): the gather
 // formulation. Each point sums its springs from both ends at the current positions and its new
 // position is written over its previous one; rows of interior points without a fixed point run
 // through a branch-free loop the compiler vectorises (compiled for AVX-512, AVX2 and baseline
@@ -231,38 +240,6 @@ const RowFunction kRows[2][2][2][2] = {
 // warn about it: a false positive.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-// One row on the AVX-512 path, 8 points a vector. A point's own springs are summed in registers
-// (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
-// target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
-// f one lane up and carrying the last lane into the next vector. The force of a point is then
-// ring (pushes of earlier rows) + own - shifted, and the point is integrated at once. (Model-26
-// shifts the along-x force together with the dx = -1 springs' forces on their sources.)
-// Without `integrate` (a slab's prologue) only the pushes are made.
-struct FusedRow {
-  const double* x[3];               // the row's positions (index i = point i of the row)
-  double* p[3];                     // the row's previous positions, overwritten with the new ones
-  const double* ring[3];            // the row's accumulated pushes
-  int directions;
-  bool valid[kMaxDirections];       // the direction's target row exists (and is used)
-  int dx[kMaxDirections];
-  long offset[kMaxDirections];      // index offset of the target point
-  const double* k[kMaxDirections];  // per-point stiffness at the source (null: ku)
-  double ku[kMaxDirections];
-  double* push[kMaxDirections][3];  // the target row's accumulators at point 0 (null: not pushed)
-  int along_x;                      // the direction (1, 0, 0), -1 when not valid
-  // Model-26: the 12 other directions in 4 groups of one target row each, (dx = -1, 0, +1).
-  int group[4][3];
-  double* group_push[4][3];         // the group's target row (null: not pushed)
-  const double* a;                  // per-point a, b (null: au, bu)
-  const double* b;
-  double au, bu;
-  const std::uint8_t* fixed;
-  long nx;
-  long stride;  // from one row to the next in every array (nx rounded up to a multiple of 8)
-  bool integrate, write;
-  bool power;  // sum f . v (the momentum solver's restart test); else the power is left 0
-};
-
 // Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
 // ones are slower on some processors, measured on this one).
 __attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 m, const double* p) {
@@ -714,6 +691,7 @@ class StructuredVerlet final : public SpringSolver {
     row_largest_.assign(rows_, 0);
     row_power_.assign(rows_, 0.0);
     simd_ = structured_simd_active();
+    avx512_ = simd_level() == 2;
     // The portable path's vectorised rows have no fixed-point logic: a row with a fixed interior
     // point takes the checked path.
     row_has_fixed_.assign(rows_, 0);
@@ -853,7 +831,7 @@ class StructuredVerlet final : public SpringSolver {
   }
 
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
-  // The AVX-512 row of `r`: pushes into the rows the tile holds; `integrate` false for the rows
+  // The vector loops' row `r`: pushes into the rows the tile holds; `integrate` false for the rows
   // around the tile (only pushes; `forward_only`: only the directions into the next plane).
   FusedRow fused_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
     const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
@@ -898,14 +876,15 @@ class StructuredVerlet final : public SpringSolver {
   }
 #endif
 
-  // Rows r .. r + count - 1 of one plane on the AVX-512 path, alike in their springs and pushes
+  // Rows r .. r + count - 1 of one plane on a vector path (AVX-512 or AVX2), alike in their springs and pushes
   // (fused_rows_avx512_t). `integrate`: rows of the tile (own springs, then each row is complete
   // and integrated); else rows around it (pushes into the tile only).
   void process_rows(Ring& ring, long r, long count, const Tile& tile, bool integrate, bool forward_only,
                     bool write) {
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
-    fused_rows_avx512(fused_row(ring, r, tile, integrate, forward_only, write), count, row_largest_.data() + r,
-                      row_power_.data() + r);
+    const FusedRow row = fused_row(ring, r, tile, integrate, forward_only, write);
+    if (avx512_) fused_rows_avx512(row, count, row_largest_.data() + r, row_power_.data() + r);
+    else fused_rows_avx2(row, count, row_largest_.data() + r, row_power_.data() + r);
 #else
     (void)ring, (void)r, (void)count, (void)tile, (void)integrate, (void)forward_only, (void)write;
 #endif
@@ -1063,7 +1042,8 @@ class StructuredVerlet final : public SpringSolver {
   LatticeShape shape_;
   std::vector<std::vector<double>> stiffness_;  // [direction][point]; 0 where no spring
   long n_ = 0, stride_ = 1, padded_n_ = 0, rows_ = 0, grain_ = 1, slab_ = 1, slabs_ = 1, strip_ = 1, strips_ = 1;
-  bool simd_ = false;  // AVX-512 path (structured_simd_active at construction), else gather
+  bool simd_ = false;    // a vector loop (structured_simd_active at construction), else gather
+  bool avx512_ = false;  // that loop is the AVX-512 one, else the AVX2 one
   std::vector<char> row_has_fixed_;
   tbb::enumerable_thread_specific<Ring> rings_;
   int directions_ = 0, iteration_ = 0;
