@@ -60,13 +60,15 @@ FASCICLE_AVX2 __m256d shift_up(__m256d v, __m256d carry) {
 }
 
 // The springs from the 4 points s (lanes) to the points at index q of the position arrays x: sets
-// l = x[q] - s and returns w = k - 1 / |l| (the force is w l). With Masked, lanes outside `mask`
-// (a vector mask) get l = 0 and w = 0: no force.
+// l = x[q] - s and returns w = k - 1 / |l| (the force is w l). With Masked, lanes outside the lane
+// bits m get l = 0 and w = 0: no force (a full m takes the unmasked instructions).
 template <bool Masked>
-FASCICLE_AVX2 __m256d spring_weight(__m256i mask, const double* const x[3], long q, const __m256d s[3], __m256d k,
+FASCICLE_AVX2 __m256d spring_weight(unsigned m, const double* const x[3], long q, const __m256d s[3], __m256d k,
                                     __m256d l[3]) {
+  const bool masked = Masked && m != kFull;
+  const __m256i mask = masked ? lanes_of(m) : _mm256_setzero_si256();
   for (int c = 0; c < 3; ++c)
-    l[c] = Masked ? _mm256_and_pd(_mm256_sub_pd(_mm256_maskload_pd(x[c] + q, mask), s[c]), _mm256_castsi256_pd(mask))
+    l[c] = masked ? _mm256_and_pd(_mm256_sub_pd(_mm256_maskload_pd(x[c] + q, mask), s[c]), _mm256_castsi256_pd(mask))
                   : _mm256_sub_pd(_mm256_loadu_pd(x[c] + q), s[c]);
   const __m256d l2 = _mm256_fmadd_pd(l[2], l[2], _mm256_fmadd_pd(l[1], l[1], _mm256_mul_pd(l[0], l[0])));
   const __m256d y0 = _mm256_cvtps_pd(_mm_rsqrt_ps(_mm256_cvtpd_ps(l2)));
@@ -76,7 +78,7 @@ FASCICLE_AVX2 __m256d spring_weight(__m256i mask, const double* const x[3], long
   g = _mm256_fmadd_pd(e, g, _mm256_set1_pd(0.5));
   const __m256d u = _mm256_fmadd_pd(e, g, one);
   const __m256d w = _mm256_fnmadd_pd(y0, u, k);  // k - 1 / |l|
-  return Masked ? _mm256_and_pd(w, _mm256_castsi256_pd(mask)) : w;
+  return masked ? _mm256_and_pd(w, _mm256_castsi256_pd(mask)) : w;
 }
 
 template <int Directions>
@@ -140,7 +142,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         if (r.dx[d] < 0 && i + shift == 0) m &= 0xEu;
         if (!valid) m = 0;
         const __m256d k = r.k[d] ? load4(m, r.k[d] + i + shift) : _mm256_set1_pd(r.ku[d]);
-        return spring_weight<true>(lanes_of(m), x, i + shift + r.offset[d], from, k, l);
+        return spring_weight<true>(m, x, i + shift + r.offset[d], from, k, l);
       } else {
         (void)valid;
         const int g = d >> 2, slot = d & 3;  // d: 4 g + slot, 15 the along-x direction
@@ -148,7 +150,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         const double* ka = d == 15 ? along_k : group_k[g][slot];
         const double ku = d == 15 ? along_ku : group_ku[g][slot];
         const __m256d k = Kind == 2 ? _mm256_loadu_pd(ka + i + shift) : _mm256_set1_pd(ku);
-        return spring_weight<false>(_mm256_setzero_si256(), x, i + shift + offset, from, k, l);
+        return spring_weight<false>(kFull, x, i + shift + offset, from, k, l);
       }
     };
     if constexpr (Directions == kMaxDirections) {
@@ -210,7 +212,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         if (r.dx[d] < 0 && i == 0) m &= 0xEu;
         const __m256d k = r.k[d] ? load4(m, r.k[d] + i) : _mm256_set1_pd(r.ku[d]);
         __m256d l[3];
-        const __m256d w = spring_weight<true>(lanes_of(m), x, i + r.offset[d], s, k, l);
+        const __m256d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
         if (d == r.along_x) {
           for (int c = 0; c < 3; ++c) {
             along[c] = _mm256_mul_pd(w, l[c]);
