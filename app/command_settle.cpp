@@ -32,6 +32,7 @@ struct SettleArgs {
   std::string static_method = "momentum";
   std::string backend = "auto";  // compute backend: cpu, gl, gl-gs, auto
   std::string path = "auto";     // CPU/gl data path: auto, structured, general
+  bool portable_loop = springs::SettleOptions{}.portable_loop;
   int gl_device = -1;
   int check_interval = 32;
   std::string damping = "estimate";
@@ -58,6 +59,7 @@ springs::SettleOptions settle_options(const SettleArgs& args) {
   options.mass = args.mass;
   options.dt = args.dt;
   options.coarse_start_points = args.coarse_start_points;
+  options.portable_loop = args.portable_loop;
   if (args.damping == "estimate") {
     options.damping_mode = springs::DampingMode::estimate;
   } else if (args.damping == "critical") {
@@ -244,6 +246,10 @@ void add_settle_command(CLI::App& app) {
                   "or auto (a hardware GPU for large Verlet lattices, else cpu)")
       ->capture_default_str();
   cmd->add_option("--path", args->path, "Verlet data path: auto, structured (lattice), general (spring list)")
+      ->capture_default_str();
+  cmd->add_option("--portable-loop", args->portable_loop,
+                  "Structured path: the portable spring loop, the same result on every processor (true), or the "
+                  "fastest loop the processor has: AVX-512, AVX2 (false)")
       ->capture_default_str();
   cmd->add_option("--gl-device", args->gl_device, "EGL device index for gl/gl-gs (-1: first hardware device, "
                                                   "else the software renderer)")

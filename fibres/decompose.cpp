@@ -384,6 +384,12 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   s.solver = springs::SolverKind::static_equilibrium;
   s.tolerance = 1e-6;
   s.max_iterations = 20000;
+  // The same fibres on every processor: the untangling after the settle turns last-bit differences
+  // of the settled lattice into different folds (the opendihu biceps tracer: 0 folded cells with
+  // the portable loop, 25 with the AVX2 loop, one try, 2026-11-22, docs/BENCHMARKS.md "Spring loop
+  // for processors without AVX-512"), and a lattice of a few thousand points settles in
+  // milliseconds with either loop.
+  s.portable_loop = true;
   return s;
 }
 
@@ -540,6 +546,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     for (springs::Spring& s : harmonic.springs) s.rest = 0.0;
     springs::SettleOptions linear;
     linear.solver = springs::SolverKind::static_equilibrium;
+    linear.portable_loop = options.settle.portable_loop;
     linear.static_method = springs::StaticMethod::local_global;
     linear.acceleration = springs::Acceleration::none;
     linear.tolerance = 1e-12;

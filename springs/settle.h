@@ -89,6 +89,12 @@ struct SettleOptions {
   int max_iterations = 100000;  ///< iteration cap, >= 1 (default 100000)
   Backend backend = Backend::automatic;  ///< Verlet data path; automatic = structured when a
                                          ///< lattice shape is given and fits (default automatic)
+  /// Structured path: the portable spring loop on every processor (true), whose result is the same
+  /// bit for bit on any x86-64 processor and thread count; or the fastest loop the processor has
+  /// (false: AVX-512, else AVX2 with FMA, else the portable one; the vector loops take 1 / |l|
+  /// from different estimates, so their results differ from each other in the last bits)
+  /// (default false).
+  bool portable_loop = false;
   // Verlet
   double mass = 0.0;     ///< point mass override, > 0; 0 keeps the system's masses (default 0)
   DampingMode damping_mode = DampingMode::estimate;  ///< (default estimate, formula 7.2)

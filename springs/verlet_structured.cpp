@@ -66,6 +66,7 @@
 #include <stdexcept>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define FASCICLE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
@@ -169,10 +170,12 @@ inline __attribute__((always_inline)) void add_direction(const double* __restric
 }
 
 // One row of interior points. Returns the largest squared force (as bits, see bits_of) and adds
-// sum f . (x - x_previous) to `power` (the momentum solver's restart test).
+// sum f . (x - x_previous) to `power` (the momentum solver's restart test), summed in point order
+// from `terms` (room for p1 - p0 values): a vector reduction would group the sum by the clone's
+// vector width, and the result must not depend on the processor (SettleOptions::portable_loop).
 template <bool Write, bool UniformK, bool UniformAB, std::size_t... Ds>
 inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, long p0, long p1, double* power,
-                                                             std::index_sequence<Ds...>) {
+                                                             double* __restrict terms, std::index_sequence<Ds...>) {
   const double* __restrict x = g.x;
   const double* __restrict y = g.y;
   const double* __restrict z = g.z;
@@ -186,11 +189,10 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
   const double ku[sizeof...(Ds)] = {g.k_uniform[Ds]...};
   const double au = g.a_uniform, bu = g.b_uniform;
   std::uint64_t largest = 0;
-  double fv = 0.0;
-  // Point p writes only px/py/pz[p], which no other iteration reads: no loop-carried dependence
-  // (GCC's restrict on locals is too weak to prove it with three output streams). The simd
-  // reductions are deterministic for a given machine (lane order is fixed).
-#pragma omp simd reduction(max : largest) reduction(+ : fv)
+  // Point p writes only px/py/pz[p] and terms[p - p0], which no other iteration reads: no
+  // loop-carried dependence (GCC's restrict on locals is too weak to prove it with three output
+  // streams). The maximum does not depend on the order.
+#pragma omp simd reduction(max : largest)
   for (long p = p0; p < p1; ++p) {
     const double xp = x[p], yp = y[p], zp = z[p];
     double fx = 0.0, fy = 0.0, fz = 0.0;
@@ -198,7 +200,7 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
     const std::uint64_t bits = bits_of(fx * fx + fy * fy + fz * fz);
     largest = bits > largest ? bits : largest;
     const double vx = xp - px[p], vy = yp - py[p], vz = zp - pz[p];
-    fv += fx * vx + fy * vy + fz * vz;
+    terms[p - p0] = fx * vx + fy * vy + fz * vz;
     if (Write) {
       const double ap = UniformAB ? au : a[p], bp = UniformAB ? bu : b[p];
       px[p] = xp + bp * vx + ap * fx;
@@ -206,15 +208,17 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
       pz[p] = zp + bp * vz + ap * fz;
     }
   }
+  double fv = 0.0;
+  for (long i = 0; i < p1 - p0; ++i) fv += terms[i];
   *power += fv;
   return largest;
 }
 
 
-using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*);
+using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*, double*);
 #define FASCICLE_ROW(name, write, uk, uab, d)                                                   \
-  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power) {     \
-    return row_body<write, uk, uab>(g, p0, p1, power, std::make_index_sequence<d>());         \
+  FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power, double* terms) { \
+    return row_body<write, uk, uab>(g, p0, p1, power, terms, std::make_index_sequence<d>());         \
   }
 FASCICLE_ROW(force6, false, false, false, 3)
 FASCICLE_ROW(force26, false, false, false, 13)
@@ -690,7 +694,7 @@ class StructuredVerlet final : public SpringSolver {
     strips_ = (shape.ny + strip_ - 1) / strip_;
     row_largest_.assign(rows_, 0);
     row_power_.assign(rows_, 0.0);
-    simd_ = structured_simd_active();
+    simd_ = structured_simd_active() && !options.portable_loop;
     avx512_ = simd_level() == 2;
     // The portable path's vectorised rows have no fixed-point logic: a row with a fixed interior
     // point takes the checked path.
@@ -951,6 +955,7 @@ class StructuredVerlet final : public SpringSolver {
     const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     const bool model6 = directions_ == 3;
     tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
+      std::vector<double> terms(static_cast<std::size_t>(nx));  // a row's power terms (row_body)
       for (long row = range.begin(); row != range.end(); ++row) {
         const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
         const long base = row * stride_;
@@ -962,7 +967,7 @@ class StructuredVerlet final : public SpringSolver {
         } else {
           take(boundary_point(g, base, 0, j, k, write, &power));
           const long p0 = base + 1, p1 = base + nx - 1;
-          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power));
+          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power, terms.data()));
           take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
         }
         row_largest_[row] = largest;

@@ -155,6 +155,42 @@ TEST_CASE("the structured path gives bitwise the same result on 1, 2 or 3 thread
   detail::set_structured_avx512(true);
 }
 
+TEST_CASE("portable_loop settles with the portable spring loop whatever the processor has", "[springs][solver]") {
+  // The decomposition sets it so that its fibres are the same on every processor: the result must
+  // be the portable loop's, bit for bit, with the vector loops allowed (Verlet and the momentum
+  // static solver, which share the loops; model-6 and model-26).
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
+      INFO("model-" << static_cast<int>(model) << " solver " << static_cast<int>(solver) << " loop "
+                    << detail::structured_simd_name());
+      const Lattice lattice = moved_lattice(TemplateKind::curved, 90, 11, model);
+      const LatticeShape shape = shape_of(lattice);
+      SettleOptions options;
+      options.solver = solver;
+      options.tolerance = 0.0;
+      options.max_iterations = 200;
+      options.backend = Backend::structured;
+      options.portable_loop = true;
+      SpringSystem with_option = lattice.system;
+      const SettleReport report = settle(with_option, options, &shape);
+      CHECK(report.backend.find("structured") != std::string::npos);
+      detail::set_structured_simd(false);
+      options.portable_loop = false;
+      SpringSystem portable = lattice.system;
+      settle(portable, options, &shape);
+      detail::set_structured_simd(true);
+      CHECK(max_distance(with_option.positions, lattice.system.positions) > 1e-3);  // it moved
+      for (std::size_t i = 0; i < portable.positions.size(); ++i)
+        REQUIRE(std::memcmp(portable.positions[i].data(), with_option.positions[i].data(), 3 * sizeof(double)) == 0);
+      if (detail::structured_simd_active()) {  // the vector loop rounds otherwise
+        SpringSystem vector = lattice.system;
+        settle(vector, options, &shape);
+        CHECK(max_distance(vector.positions, portable.positions) > 0.0);
+      }
+    }
+  }
+}
+
 TEST_CASE("fixed points are bitwise unchanged by every solver", "[springs][solver]") {
   Lattice lattice = moved_lattice(TemplateKind::fanned, 49, 9, SpringModel::model6);
   // Fix a few interior points too (the structured path takes its checked rows for them).
