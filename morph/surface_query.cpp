@@ -1,11 +1,10 @@
 // Closest point and exact inside test on a plain triangle mesh through CGAL: the AABB tree over
 // the triangles (closest point with its primitive), and Side_of_triangle_mesh over a
-// Surface_mesh copy (ray crossing counts with exact predicates) behind an InsideGrid. Rays: a
-// plain bounding-volume hierarchy over the triangles' boxes.
+// Surface_mesh copy (ray crossing counts with exact predicates). Rays: a plain bounding-volume
+// hierarchy over the triangles' boxes.
 #include "morph/surface_query.h"
 
 #include "geometry/errors.h"
-#include "morph/inside_grid.h"
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -33,9 +32,6 @@ using Inside = CGAL::Side_of_triangle_mesh<Mesh, Kernel>;
 
 Point to_point(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 Vec3 to_vec(const Point& p) { return {p.x(), p.y(), p.z()}; }
-Side to_side(CGAL::Bounded_side side) {
-  return side == CGAL::ON_BOUNDED_SIDE ? Side::inside : side == CGAL::ON_BOUNDARY ? Side::boundary : Side::outside;
-}
 
 // Bounding-volume hierarchy over the triangles for first_hit(): median split of the triangle
 // centres along the longest axis of their box, leaves of up to 4 triangles; each node's box
@@ -163,7 +159,6 @@ struct SurfaceQuery::Impl {
   RayTree rays;
   std::once_flag inside_once;
   std::optional<Inside> inside;
-  std::optional<InsideGrid> grid;
 };
 
 SurfaceQuery::SurfaceQuery(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
@@ -206,15 +201,12 @@ Side SurfaceQuery::side(const Vec3& p) const {
       if (m.add_face(vertices[t[0]], vertices[t[1]], vertices[t[2]]) == Mesh::null_face())
         throw TopologyError("inside test: the mesh is not an oriented 2-manifold");
     impl_->inside.emplace(m);
-    const Inside& exact = *impl_->inside;
-    impl_->grid.emplace(impl_->mesh, [&exact](const Vec3& q) { return to_side(exact(to_point(q))); });
   });
-  return impl_->grid->side(p);
-}
-
-Side SurfaceQuery::exact_side(const Vec3& p) const {
-  side(p);  // builds the exact test on first use
-  return to_side((*impl_->inside)(to_point(p)));
+  switch ((*impl_->inside)(to_point(p))) {
+    case CGAL::ON_BOUNDED_SIDE: return Side::inside;
+    case CGAL::ON_BOUNDARY: return Side::boundary;
+    default: return Side::outside;
+  }
 }
 
 bool SurfaceQuery::first_hit(const Vec3& p, const Vec3& d, double reach, Vec3& hit) const {

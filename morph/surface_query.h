@@ -25,9 +25,9 @@ enum class Side { inside, boundary, outside };
 
 /// Point queries on one triangle mesh. Build once (an AABB tree over the triangles, a bounding
 /// volume hierarchy for rays, and for the inside test CGAL::Side_of_triangle_mesh, which counts
-/// ray crossings with exact predicates, behind an InsideGrid, morph/inside_grid.h), then query
-/// many times. closest_point and first_hit may be called from several threads; side() builds its
-/// structures on first use (once, thread-safe).
+/// ray crossings with exact predicates), then query many times. closest_point and first_hit may
+/// be called from several threads; side() builds its tree on first use and is not meant for
+/// concurrent first calls.
 class SurfaceQuery {
  public:
   /// Builds the trees. `mesh` must outlive nothing: its data are copied. Throws TopologyError
@@ -42,14 +42,8 @@ class SurfaceQuery {
   SurfacePoint closest_point(const Vec3& p) const;
 
   /// Exact side of `p` with respect to the closed surface (precondition: the mesh is closed;
-  /// on an open mesh the answer is meaningless). The same answer as exact_side(p): a point in a
-  /// grid cell away from the surface takes its cell's side (classified once, on the first call),
-  /// only points near the surface go to the exact test (about a tenth of the cost where most
-  /// points are inside, the fibre lattice's case).
+  /// on an open mesh the answer is meaningless).
   Side side(const Vec3& p) const;
-
-  /// The exact test itself (CGAL::Side_of_triangle_mesh), without the grid.
-  Side exact_side(const Vec3& p) const;
 
   /// First hit of the ray p + t d (t > 0; d need not be unit) with the surface, among the
   /// triangles whose box meets the box of the segment t in [0, reach] (so only hits with

@@ -129,34 +129,6 @@ TEST_CASE("inside test on a closed mesh", "[morph][locate]") {
   CHECK(query.side(mesh.positions[5]) == Side::boundary);
 }
 
-TEST_CASE("the grid's inside test gives the exact test's answer", "[morph][locate]") {
-  const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
-  const SurfaceQuery query(mesh);
-  // Points all over the box (most far from the surface) and points a hair off the surface (in
-  // the grid's cells near it), and vertices (on the boundary).
-  std::mt19937 random(5);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vec3 lo = mesh.positions.front(), hi = lo;
-  for (const Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-  long inside = 0, outside = 0;
-  for (int n = 0; n < 4000; ++n) {
-    const Vec3 p = lo + Vec3(unit(random), unit(random), unit(random)).cwiseProduct(hi - lo) * 1.1 - 0.05 * (hi - lo);
-    const Side side = query.side(p);
-    CHECK(side == query.exact_side(p));
-    inside += side == Side::inside, outside += side == Side::outside;
-  }
-  CHECK(inside > 100);
-  CHECK(outside > 100);
-  for (std::size_t v = 0; v < mesh.positions.size(); v += 7) {
-    const Vec3 centre = mesh.positions[v];
-    CHECK(query.side(centre) == Side::boundary);
-    for (const Vec3& d : random_directions(3, static_cast<unsigned>(v))) {
-      const Vec3 p = centre + 1e-7 * d;
-      CHECK(query.side(p) == query.exact_side(p));
-    }
-  }
-}
-
 TEST_CASE("first_hit finds the hit of a test of every triangle, to the bit", "[morph][locate]") {
   const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
   const SurfaceQuery query(mesh);
