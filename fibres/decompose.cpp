@@ -82,37 +82,6 @@ std::vector<int> outside_free_points(const springs::SpringSystem& system, const 
   return out;
 }
 
-// First hit of the ray p + t d (t > 0) with the muscle surface (Moeller-Trumbore on every
-// triangle whose box meets the box of the ray's first `reach` length units); false when none.
-bool ray_hit(const TriangleMesh& mesh, const Vec3& p, const Vec3& d, double reach, Vec3& hit) {
-  double best = reach;
-  bool found = false;
-  const Vec3 q = p + reach * d;
-  const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
-  for (const Triangle& t : mesh.triangles) {
-    const Vec3& a = mesh.positions[t[0]];
-    const Vec3& b = mesh.positions[t[1]];
-    const Vec3& c = mesh.positions[t[2]];
-    if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
-    const Vec3 e1 = b - a, e2 = c - a, h = d.cross(e2);
-    const double det = e1.dot(h);
-    if (std::abs(det) < 1e-300) continue;
-    const Vec3 s = p - a;
-    const double u = s.dot(h) / det;
-    if (u < 0.0 || u > 1.0) continue;
-    const Vec3 qv = s.cross(e1);
-    const double v = d.dot(qv) / det;
-    if (v < 0.0 || u + v > 1.0) continue;
-    const double t_hit = e2.dot(qv) / det;
-    if (t_hit > 0.0 && t_hit < best) {
-      best = t_hit;
-      found = true;
-    }
-  }
-  if (found) hit = p + best * d;
-  return found;
-}
-
 // Whether the inner points of layer k, seen along `axis`, form an unfolded grid: every quad
 // (diagonals crossed) turns the same way as the whole layer.
 bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice& lattice, int k, const Vec3& axis) {
@@ -278,7 +247,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     if (strip) {
       std::vector<Vec3> area_points;
       for (const SurfacePoint& p : area->points) area_points.push_back(p.position);
-      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) { return ray_hit(muscle, start, axis, reach, end); };
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) { return query.first_hit(start, axis, reach, end); };
       const auto near = [&](const Vec3& end) {
         for (const SurfacePoint& p : area->points)
           if ((p.position - end).squaredNorm() <= radius * radius) return true;
@@ -305,7 +274,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
         for (const Vec3& offset : offsets) {
           const Vec3 start = c1 + lambda * offset;
           Vec3 hit;
-          if (!ray_hit(muscle, start, axes[a], reach, hit)) {
+          if (!query.first_hit(start, axes[a], reach, hit)) {
             placed = false;
             break;
           }
@@ -339,7 +308,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
           // closest surface point instead.
           const Vec3 start = c1 + rim_lambda * offset;
           Vec3 hit;
-          if (!ray_hit(muscle, start, axes[used_axis], reach, hit)) hit = query.closest_point(start).position;
+          if (!query.first_hit(start, axes[used_axis], reach, hit)) hit = query.closest_point(start).position;
           if (!hit.allFinite()) break;
           rim_hits.push_back(hit);
         }

@@ -1,6 +1,7 @@
 // Closest point and exact inside test on a plain triangle mesh through CGAL: the AABB tree over
 // the triangles (closest point with its primitive), and Side_of_triangle_mesh over a
-// Surface_mesh copy (ray crossing counts with exact predicates).
+// Surface_mesh copy (ray crossing counts with exact predicates). Rays: a plain bounding-volume
+// hierarchy over the triangles' boxes.
 #include "morph/surface_query.h"
 
 #include "geometry/errors.h"
@@ -12,7 +13,9 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <algorithm>
 #include <mutex>
+#include <numeric>
 #include <optional>
 
 namespace fascicle {
@@ -30,7 +33,107 @@ using Inside = CGAL::Side_of_triangle_mesh<Mesh, Kernel>;
 Point to_point(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 Vec3 to_vec(const Point& p) { return {p.x(), p.y(), p.z()}; }
 
+// Bounding-volume hierarchy over the triangles for first_hit(): median split of the triangle
+// centres along the longest axis of their box, leaves of up to 4 triangles; each node's box
+// holds its triangles' boxes, padded by 1e-6 of the mesh's diagonal so that a hit that rounding
+// puts a hair outside a triangle (a ray grazing it) is not culled with its node.
+struct RayTree {
+  struct Node {
+    Vec3 lo, hi;
+    int first = 0, count = 0;  // leaf: triangles order[first, first + count)
+    int left = -1, right = -1;  // inner node: children
+  };
+  std::vector<Node> nodes;
+  std::vector<int> order;
+
+  void build(const TriangleMesh& mesh) {
+    const std::size_t n = mesh.triangles.size();
+    order.resize(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::vector<Vec3> lo(n), hi(n), centre(n);
+    Vec3 all_lo = Vec3::Constant(1e300), all_hi = Vec3::Constant(-1e300);
+    for (std::size_t f = 0; f < n; ++f) {
+      const Triangle& t = mesh.triangles[f];
+      const Vec3& a = mesh.positions[t[0]];
+      const Vec3& b = mesh.positions[t[1]];
+      const Vec3& c = mesh.positions[t[2]];
+      lo[f] = a.cwiseMin(b).cwiseMin(c);
+      hi[f] = a.cwiseMax(b).cwiseMax(c);
+      centre[f] = 0.5 * (lo[f] + hi[f]);
+      all_lo = all_lo.cwiseMin(lo[f]);
+      all_hi = all_hi.cwiseMax(hi[f]);
+    }
+    const double pad = 1e-6 * (all_hi - all_lo).norm();
+    nodes.clear();
+    nodes.reserve(2 * n / 4 + 2);
+    const auto make = [&](auto&& self, int first, int count) -> int {
+      const int id = static_cast<int>(nodes.size());
+      nodes.emplace_back();
+      Vec3 box_lo = Vec3::Constant(1e300), box_hi = Vec3::Constant(-1e300);
+      Vec3 c_lo = box_lo, c_hi = box_hi;
+      for (int i = first; i < first + count; ++i) {
+        const int f = order[static_cast<std::size_t>(i)];
+        box_lo = box_lo.cwiseMin(lo[static_cast<std::size_t>(f)]);
+        box_hi = box_hi.cwiseMax(hi[static_cast<std::size_t>(f)]);
+        c_lo = c_lo.cwiseMin(centre[static_cast<std::size_t>(f)]);
+        c_hi = c_hi.cwiseMax(centre[static_cast<std::size_t>(f)]);
+      }
+      nodes[static_cast<std::size_t>(id)].lo = box_lo - Vec3::Constant(pad);
+      nodes[static_cast<std::size_t>(id)].hi = box_hi + Vec3::Constant(pad);
+      if (count <= 4) {
+        nodes[static_cast<std::size_t>(id)].first = first;
+        nodes[static_cast<std::size_t>(id)].count = count;
+        return id;
+      }
+      int axis = 0;
+      (c_hi - c_lo).maxCoeff(&axis);
+      const int mid = first + count / 2;
+      std::nth_element(order.begin() + first, order.begin() + mid, order.begin() + first + count, [&](int x, int y) {
+        return centre[static_cast<std::size_t>(x)][axis] < centre[static_cast<std::size_t>(y)][axis];
+      });
+      const int left = self(self, first, mid - first);
+      const int right = self(self, mid, first + count - mid);
+      nodes[static_cast<std::size_t>(id)].left = left;
+      nodes[static_cast<std::size_t>(id)].right = right;
+      return id;
+    };
+    if (n > 0) make(make, 0, static_cast<int>(n));
+  }
+};
+
+// Entry parameter of the segment p + t d, t in [0, t_max], into the box [lo, hi] (slab test);
+// false when it misses.
+bool segment_meets_box(const Vec3& p, const Vec3& inverse_d, double t_max, const Vec3& lo, const Vec3& hi) {
+  double t0 = 0.0, t1 = t_max;
+  for (int a = 0; a < 3; ++a) {
+    if (std::isinf(inverse_d[a])) {  // parallel to the slab
+      if (p[a] < lo[a] || p[a] > hi[a]) return false;
+      continue;
+    }
+    double near = (lo[a] - p[a]) * inverse_d[a], far = (hi[a] - p[a]) * inverse_d[a];
+    if (near > far) std::swap(near, far);
+    t0 = std::max(t0, near);
+    t1 = std::min(t1, far);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
 }  // namespace
+
+bool ray_triangle_hit(const Vec3& p, const Vec3& d, const Vec3& a, const Vec3& b, const Vec3& c, double& t) {
+  const Vec3 e1 = b - a, e2 = c - a, h = d.cross(e2);
+  const double det = e1.dot(h);
+  if (std::abs(det) < 1e-300) return false;
+  const Vec3 s = p - a;
+  const double u = s.dot(h) / det;
+  if (u < 0.0 || u > 1.0) return false;
+  const Vec3 qv = s.cross(e1);
+  const double v = d.dot(qv) / det;
+  if (v < 0.0 || u + v > 1.0) return false;
+  t = e2.dot(qv) / det;
+  return true;
+}
 
 Vec3 triangle_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 u = b - a, w = c - a, d = p - a;
@@ -53,6 +156,7 @@ struct SurfaceQuery::Impl {
   std::vector<Triangle3> triangles;
   Tree tree;
   Mesh surface;
+  RayTree rays;
   std::once_flag inside_once;
   std::optional<Inside> inside;
 };
@@ -67,6 +171,7 @@ SurfaceQuery::SurfaceQuery(const TriangleMesh& mesh) : impl_(std::make_unique<Im
   impl_->tree.insert(impl_->triangles.cbegin(), impl_->triangles.cend());
   impl_->tree.build();
   impl_->tree.accelerate_distance_queries();
+  impl_->rays.build(mesh);
 }
 
 SurfaceQuery::~SurfaceQuery() = default;
@@ -102,6 +207,45 @@ Side SurfaceQuery::side(const Vec3& p) const {
     case CGAL::ON_BOUNDARY: return Side::boundary;
     default: return Side::outside;
   }
+}
+
+bool SurfaceQuery::first_hit(const Vec3& p, const Vec3& d, double reach, Vec3& hit) const {
+  const RayTree& tree = impl_->rays;
+  if (tree.nodes.empty()) return false;
+  const TriangleMesh& mesh = impl_->mesh;
+  double best = reach;
+  bool found = false;
+  const Vec3 q = p + reach * d;
+  const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
+  const Vec3 inverse_d(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());
+  int stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const RayTree::Node& node = tree.nodes[static_cast<std::size_t>(stack[--top])];
+    // Nodes beyond the best hit so far cannot hold a nearer one (their padded boxes hold every
+    // hit of their triangles).
+    if (!segment_meets_box(p, inverse_d, best, node.lo, node.hi)) continue;
+    if (node.count == 0) {
+      stack[top++] = node.left;
+      stack[top++] = node.right;
+      continue;
+    }
+    for (int i = node.first; i < node.first + node.count; ++i) {
+      const Triangle& t = mesh.triangles[static_cast<std::size_t>(tree.order[static_cast<std::size_t>(i)])];
+      const Vec3& a = mesh.positions[t[0]];
+      const Vec3& b = mesh.positions[t[1]];
+      const Vec3& c = mesh.positions[t[2]];
+      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
+      double t_hit = 0.0;
+      if (ray_triangle_hit(p, d, a, b, c, t_hit) && t_hit > 0.0 && t_hit < best) {
+        best = t_hit;
+        found = true;
+      }
+    }
+  }
+  if (found) hit = p + best * d;
+  return found;
 }
 
 }  // namespace fascicle

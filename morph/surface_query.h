@@ -1,7 +1,8 @@
 #pragma once
 /// \file surface_query.h
-/// Queries on a closed muscle surface: closest surface point (face + barycentric coordinates)
-/// and the exact inside test. CGAL AABB tree and Side_of_triangle_mesh behind a plain interface.
+/// Queries on a closed muscle surface: closest surface point (face + barycentric coordinates),
+/// the exact inside test and the first hit of a ray. CGAL AABB tree and Side_of_triangle_mesh
+/// behind a plain interface.
 
 #include "geometry/mesh.h"
 
@@ -22,10 +23,11 @@ struct SurfacePoint {
 /// Where a point lies with respect to a closed surface.
 enum class Side { inside, boundary, outside };
 
-/// Point queries on one triangle mesh. Build once (an AABB tree over the triangles, and for the
-/// inside test CGAL::Side_of_triangle_mesh, which counts ray crossings with exact predicates),
-/// then query many times. closest_point may be called from several threads; side() builds its
-/// tree on first use and is not meant for concurrent first calls.
+/// Point queries on one triangle mesh. Build once (an AABB tree over the triangles, a bounding
+/// volume hierarchy for rays, and for the inside test CGAL::Side_of_triangle_mesh, which counts
+/// ray crossings with exact predicates), then query many times. closest_point and first_hit may
+/// be called from several threads; side() builds its tree on first use and is not meant for
+/// concurrent first calls.
 class SurfaceQuery {
  public:
   /// Builds the trees. `mesh` must outlive nothing: its data are copied. Throws TopologyError
@@ -43,6 +45,13 @@ class SurfaceQuery {
   /// on an open mesh the answer is meaningless).
   Side side(const Vec3& p) const;
 
+  /// First hit of the ray p + t d (t > 0; d need not be unit) with the surface, among the
+  /// triangles whose box meets the box of the segment t in [0, reach] (so only hits with
+  /// t < reach): Moeller-Trumbore on each (ray_triangle_hit()), the triangles found through a
+  /// bounding-volume hierarchy; the hit position into `hit`; false (hit untouched) when none.
+  /// The same answer, to the bit, as that test on every triangle in turn.
+  bool first_hit(const Vec3& p, const Vec3& d, double reach, Vec3& hit) const;
+
   /// side(p) == Side::inside.
   bool inside(const Vec3& p) const { return side(p) == Side::inside; }
 
@@ -50,6 +59,10 @@ class SurfaceQuery {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Moeller-Trumbore test of the ray p + t d against the triangle (a, b, c): its parameter t
+/// (any sign) into `t`, false when the ray misses it (or is parallel to it, |det| < 1e-300).
+bool ray_triangle_hit(const Vec3& p, const Vec3& d, const Vec3& a, const Vec3& b, const Vec3& c, double& t);
 
 /// Barycentric coordinates of `p` with respect to the triangle (a, b, c), computed on the
 /// triangle's plane (p is projected first), clamped to the triangle and renormalised.

@@ -128,3 +128,46 @@ TEST_CASE("inside test on a closed mesh", "[morph][locate]") {
   CHECK(query.side(Vec3(0, 5, 7)) == Side::outside);
   CHECK(query.side(mesh.positions[5]) == Side::boundary);
 }
+
+TEST_CASE("first_hit finds the hit of a test of every triangle, to the bit", "[morph][locate]") {
+  const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
+  const SurfaceQuery query(mesh);
+  // Every triangle in turn, as the fibre ends' cast did before first_hit (decompose.cpp).
+  const auto brute = [&](const Vec3& p, const Vec3& d, double reach, Vec3& hit) {
+    double best = reach;
+    bool found = false;
+    const Vec3 q = p + reach * d;
+    const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
+    for (const Triangle& t : mesh.triangles) {
+      const Vec3 &a = mesh.positions[t[0]], &b = mesh.positions[t[1]], &c = mesh.positions[t[2]];
+      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
+      double t_hit = 0.0;
+      if (ray_triangle_hit(p, d, a, b, c, t_hit) && t_hit > 0.0 && t_hit < best) best = t_hit, found = true;
+    }
+    if (found) hit = p + best * d;
+    return found;
+  };
+  std::mt19937 random(9);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const std::vector<Vec3> directions = random_directions(600, 13);
+  long hits = 0, misses = 0;
+  for (std::size_t n = 0; n < directions.size(); ++n) {
+    // Starts inside (on the bent centre line, off it), outside, and on vertices; short and long
+    // reaches; a few directions along the axes (parallel to box faces).
+    const double bend = 15.0 / (120.0 * M_PI / 180.0), z = 0.5 + 14.0 * (0.5 + 0.5 * unit(random));
+    Vec3 p(bend - bend * std::cos(z / bend), 0.0, bend * std::sin(z / bend));
+    if (n % 3 == 1) p += 3.0 * Vec3(unit(random), unit(random), unit(random));
+    if (n % 5 == 4) p = mesh.positions[n % mesh.positions.size()];
+    Vec3 d = directions[n];
+    if (n % 11 == 0) d = Vec3::Unit(static_cast<Eigen::Index>(n % 3));
+    if (n % 7 == 0) d *= 3.5;
+    const double reach = n % 4 == 0 ? 0.7 : 80.0;
+    Vec3 a = Vec3::Constant(-1.0), b = Vec3::Constant(-2.0);
+    const bool found_a = query.first_hit(p, d, reach, a), found_b = brute(p, d, reach, b);
+    REQUIRE(found_a == found_b);
+    if (found_a) CHECK((a.array() == b.array()).all());
+    (found_a ? hits : misses) += 1;
+  }
+  CHECK(hits > 300);
+  CHECK(misses > 20);
+}
