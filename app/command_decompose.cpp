@@ -210,6 +210,20 @@ void add_decompose_command(CLI::App& app) {
                   "Untangling: free the surface ring with the fibre ends (held just under the surface, sliding along "
                   "it) so that the rings next to a hooked end can turn")
       ->capture_default_str();
+  cmd->add_option("--untangle-containment-energy", o.untangle.containment_energy,
+                  "Untangling: in the attempts with the surface ring free, a penalty on each free point's signed "
+                  "distance outside the muscle is part of the energy (raised while a point is outside)")
+      ->capture_default_str();
+  cmd->add_option("--untangle-containment-everywhere", o.untangle.containment_energy_everywhere,
+                  "Untangling: the containment energy in every attempt, not only those with the ring free")
+      ->capture_default_str();
+  cmd->add_option("--untangle-containment-margin", o.untangle.containment_margin,
+                  "Untangling: depth (local spacings) the containment energy pushes a point to")
+      ->capture_default_str();
+  cmd->add_option("--untangle-containment-band", o.untangle.containment_band,
+                  "Untangling: points farther inside than this many local spacings are left out of the containment "
+                  "energy")
+      ->capture_default_str();
   cmd->add_option("--end-area-margin", o.untangle.end_area_margin,
                   "Untangling: farthest a freed fibre end may lie from its attachment area, as a share of the muscle "
                   "length (0: within the end shift of its cast place)")

@@ -69,8 +69,13 @@ double chi_derivative(double d, double eps) { return 0.5 * (1.0 + d / std::sqrt(
 class Energy {
  public:
   Energy(std::vector<Vec3>& positions, const std::vector<char>& fixed, const std::vector<UntangleTet>& tets,
-         double lambda, const std::vector<UntangleAnchor>& anchors)
-      : positions_(positions), tets_(tets), anchors_(anchors), lambda_(lambda), slot_(positions.size(), -1) {
+         double lambda, const std::vector<UntangleAnchor>& anchors, const UntangleContainment& containment)
+      : positions_(positions),
+        tets_(tets),
+        anchors_(anchors),
+        containment_(containment),
+        lambda_(lambda),
+        slot_(positions.size(), -1) {
     for (std::size_t q = 0; q < positions.size(); ++q)
       if (!fixed[q]) {
         slot_[q] = static_cast<int>(free_.size());
@@ -81,7 +86,19 @@ class Energy {
       for (int v : tets[t].v) any = any || slot_[static_cast<std::size_t>(v)] >= 0;
       if (any) active_.push_back(static_cast<int>(t));
     }
+    if (containment.active())
+      for (const UntangleContainment::Point& c : containment.points)
+        if (slot_[static_cast<std::size_t>(c.point)] >= 0) contained_.push_back(c);
   }
+  // Free containment points outside (signed distance > 0) at the current positions.
+  long outside_count() const {
+    long n = 0;
+    for (const UntangleContainment::Point& c : contained_)
+      n += containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], nullptr) > 0.0 ? 1 : 0;
+    return n;
+  }
+  // Multiplier of the containment weights (raised by the stages while a point is outside).
+  double containment_scale = 1.0;
   std::size_t free_count() const { return free_.size(); }
   Eigen::VectorXd get() const {
     Eigen::VectorXd x(3 * static_cast<Eigen::Index>(free_.size()));
@@ -179,6 +196,17 @@ class Energy {
         if (g) g->segment<3>(3 * s) += 2.0 * a.weight * d;
       }
     }
+    // Containment: weight max(0, d + margin)^2 on the signed distance d (serial, in the points'
+    // order: the signed distance may fill a cache).
+    for (const UntangleContainment::Point& c : contained_) {
+      Vec3 gradient = Vec3::Zero();
+      const double d = containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], g ? &gradient : nullptr);
+      const double over = d + c.margin;
+      if (!(over > 0.0)) continue;
+      const double w = c.weight * containment_scale;
+      e += w * over * over;
+      if (g) g->segment<3>(3 * slot_[static_cast<std::size_t>(c.point)]) += 2.0 * w * over * gradient;
+    }
     return e;
   }
   int evaluations = 0;
@@ -187,6 +215,8 @@ class Energy {
   std::vector<Vec3>& positions_;
   const std::vector<UntangleTet>& tets_;
   const std::vector<UntangleAnchor>& anchors_;
+  const UntangleContainment& containment_;
+  std::vector<UntangleContainment::Point> contained_;  // the containment's free points
   double lambda_;
   std::vector<int> slot_, free_, active_;
   std::vector<double> terms_;              // each active tetrahedron's energy term
@@ -314,6 +344,9 @@ nlohmann::json UntangleReport::to_json() const {
           {"iterations", iterations},
           {"evaluations", evaluations},
           {"eps", eps},
+          {"outside_before", outside_before},
+          {"outside_after", outside_after},
+          {"containment_scale", containment_scale},
           {"seconds", seconds}};
 }
 
@@ -326,7 +359,7 @@ std::vector<double> tet_jacobian_dets(const std::vector<Vec3>& positions, const 
 
 UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& fixed,
                         const std::vector<UntangleTet>& tets, const UntangleOptions& options,
-                        const std::vector<UntangleAnchor>& anchors) {
+                        const std::vector<UntangleAnchor>& anchors, const UntangleContainment& containment) {
   options.validate();
   const auto start = Clock::now();
   if (fixed.size() != positions.size())
@@ -340,6 +373,13 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     if (a.point < 0 || static_cast<std::size_t>(a.point) >= positions.size() || !(a.weight >= 0.0) ||
         !a.target.allFinite() || !(a.radius >= 0.0) || !a.normal.allFinite())
       throw Error(ErrorCode::internal, "untangle: bad anchor of point " + std::to_string(a.point));
+  if (containment.active()) {
+    if (!(containment.growth >= 1.0) || !(containment.max_scale >= 1.0))
+      throw Error(ErrorCode::internal, "untangle: containment growth and max_scale must be >= 1");
+    for (const UntangleContainment::Point& c : containment.points)
+      if (c.point < 0 || static_cast<std::size_t>(c.point) >= positions.size() || !(c.weight >= 0.0) || !(c.margin >= 0.0))
+        throw Error(ErrorCode::internal, "untangle: bad containment point " + std::to_string(c.point));
+  }
   for (const Vec3& p : positions)
     if (!p.allFinite()) throw Error(ErrorCode::internal, "untangle: a point is not finite");
 
@@ -349,10 +389,12 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
   Census before = census(positions, tets, options.min_det);
   report.inverted_before = before.inverted;
   report.min_det_before = before.min_det;
-  Energy energy(positions, fixed, tets, options.lambda, anchors);
+  Energy energy(positions, fixed, tets, options.lambda, anchors, containment);
   report.free_points = static_cast<long>(energy.free_count());
   Census now = before;
-  if ((before.inverted > 0 || !anchors.empty()) && energy.free_count() > 0) {
+  long outside = energy.outside_count();
+  report.outside_before = outside;
+  if ((before.inverted > 0 || !anchors.empty() || outside > 0) && energy.free_count() > 0) {
     Eigen::VectorXd x = energy.get();
     // Initial eps: large enough that the most inverted tetrahedron still has a finite,
     // well-scaled energy (Garanzha et al. 2021: eps ~ the depth of the worst inversion).
@@ -360,16 +402,21 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     double e_prev = energy.evaluate(x, eps, nullptr);
     double best_min_det = now.min_det;
     long best_inverted = now.inverted;
+    long best_outside = outside;
     int stalled = 0;
     for (int stage = 0; stage < options.max_stages; ++stage) {
       report.iterations += minimise(energy, x, eps, options.stage_iterations, options.history);
       ++report.stages;
       report.eps = eps;
       now = census(positions, tets, options.min_det);
-      if (now.inverted == 0) break;
-      if (now.min_det > best_min_det + 1e-6 || now.inverted < best_inverted) {
+      outside = energy.outside_count();
+      if (now.inverted == 0 && outside == 0) break;
+      // Progress: fewer inverted, a larger smallest det while some are inverted, fewer outside.
+      if ((now.inverted > 0 && now.min_det > best_min_det + 1e-6) || now.inverted < best_inverted ||
+          outside < best_outside) {
         best_min_det = std::max(best_min_det, now.min_det);
         best_inverted = std::min(best_inverted, now.inverted);
+        best_outside = std::min(best_outside, outside);
         stalled = 0;
       } else if (++stalled >= options.stall_stages) {
         break;
@@ -382,6 +429,11 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       const double mu = (1.0 - sigma) * chi(now.min_det, eps);
       eps = now.min_det < mu ? 2.0 * std::sqrt(mu * (mu - now.min_det)) : kSmallestEps;
       eps = std::max(eps, kSmallestEps);
+      // The containment tightens each stage that leaves a point outside (raised only once every
+      // tetrahedron was positive, it never was where one fold outlasted the stages, and hundreds of
+      // points went out: LHDL psoas 51 folded cells after the pins, opendihu left biceps 123).
+      if (outside > 0)
+        energy.containment_scale = std::min(containment.max_scale, energy.containment_scale * containment.growth);
       e_prev = energy.evaluate(x, eps, nullptr);
     }
     if (now.inverted == 0 && options.polish_iterations > 0) {
@@ -395,6 +447,8 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     }
   }
   report.inverted_after = now.inverted;
+  report.outside_after = energy.outside_count();
+  report.containment_scale = energy.containment_scale;
   report.uncounted_inverted_after = census(positions, tets, options.min_det).uncounted_inverted;
   report.min_det_after = now.min_det;
   report.evaluations = energy.evaluations;

@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -88,6 +89,32 @@ struct UntangleAnchor {
   bool one_sided = true;
 };
 
+/// Signed distance to a closed surface at a point: negative inside, positive outside, in length
+/// units; writes its gradient into `gradient` when that is not null. untangle() calls it from one
+/// thread, in a fixed order, so a lazily filled cache behind it keeps the result deterministic.
+using SignedDistanceFunction = std::function<double(const Vec3& point, Vec3* gradient)>;
+
+/// Containment as part of the energy: each listed point that is free pays
+///     weight * scale * max(0, d(x) + margin)^2,
+/// d the signed distance, so the minimum the untangling seeks already has the points at least
+/// `margin` inside. `scale` starts at 1 and is multiplied by `growth` after each eps stage that
+/// leaves a listed point outside (d > 0) and did not invert fewer tetrahedra than the stage before
+/// (or left none inverted), at most `max_scale`; the stages go on while a listed point
+/// is outside even when no tetrahedron is inverted (the barrier then keeps the cells unfolded while
+/// the penalty pulls the points in).
+struct UntangleContainment {
+  struct Point {
+    int point = 0;
+    double weight = 0.0;  ///< energy per squared length unit, >= 0
+    double margin = 0.0;  ///< depth it is pushed to, length units, >= 0
+  };
+  SignedDistanceFunction signed_distance;  ///< empty: no containment
+  std::vector<Point> points;
+  double growth = 4.0;       ///< factor of the scale per stage with a point outside, >= 1 (default 4)
+  double max_scale = 4096.0; ///< largest scale, >= 1 (default 4096 = 4^6)
+  bool active() const { return signed_distance && !points.empty(); }
+};
+
 /// What untangle() did.
 struct UntangleReport {
   long tets = 0;               ///< tetrahedra in the problem
@@ -102,17 +129,23 @@ struct UntangleReport {
   int evaluations = 0;         ///< energy and gradient evaluations
   double eps = 0.0;            ///< eps of the last stage
   double seconds = 0.0;
+  long outside_before = 0;     ///< containment points with d > 0 before (0 without containment)
+  long outside_after = 0;      ///< and after
+  double containment_scale = 1.0;  ///< the containment's last scale
   bool untangled() const { return inverted_after == 0; }
   nlohmann::json to_json() const;
 };
 
 /// Untangles `positions` (#P) in place: only points with fixed[q] == 0 move. Tetrahedra whose
 /// four points are all fixed are counted but cannot change. Does nothing (but count) when no
-/// tetrahedron is inverted. Throws OptionError for bad options, InputError(internal) for a
+/// tetrahedron is inverted, no anchor is given and no containment point is outside. With
+/// `containment` (UntangleContainment) the stages go on until no tetrahedron is inverted and no
+/// containment point is outside. Throws OptionError for bad options, InputError(internal) for a
 /// vertex index out of range or a non-finite position.
 UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& fixed,
                         const std::vector<UntangleTet>& tets, const UntangleOptions& options = {},
-                        const std::vector<UntangleAnchor>& anchors = {});
+                        const std::vector<UntangleAnchor>& anchors = {},
+                        const UntangleContainment& containment = {});
 
 /// det J of every tetrahedron at `positions` (its signed volume relative to its reference).
 std::vector<double> tet_jacobian_dets(const std::vector<Vec3>& positions, const std::vector<UntangleTet>& tets);

@@ -2,9 +2,13 @@
 
 #include "fibres/fibre_grid.h"
 #include "geometry/errors.h"
+#include "morph/signed_distance_grid.h"
 
 #include <Eigen/LU>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <algorithm>
+#include <memory>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
@@ -37,6 +41,10 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("untangle ring_weight: must be in (0, 1e12), got " + std::to_string(ring_weight));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
     throw OptionError("untangle contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
+  if (!(containment_margin >= 0.0 && containment_margin < 1.0))
+    throw OptionError("untangle containment_margin: must be in [0, 1), got " + std::to_string(containment_margin));
+  if (!(containment_band > 0.0 && containment_band < 1e6))
+    throw OptionError("untangle containment_band: must be in (0, 1e6), got " + std::to_string(containment_band));
 }
 
 nlohmann::json LatticeUntangleReport::to_json() const {
@@ -213,6 +221,27 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   const double area_limit = options.end_area_margin * length;  // farthest an end may lie from its area
   const double area_ball = 0.8 * area_limit;                     // where its soft pin starts to pull
   const std::vector<UntangleTet> tets = lattice_cell_tets(lattice, system.positions);
+  // The signed-distance grid of the containment energy, made on first use (cells a quarter of the
+  // 10th-percentile local spacing, over the lattice's box widened by 3 of the largest spacings).
+  std::unique_ptr<SignedDistanceGrid> distance_grid;
+  auto grid = [&]() -> SignedDistanceGrid& {
+    if (!distance_grid) {
+      std::vector<double> sp = lattice_local_spacing(system);
+      sp.resize(static_cast<std::size_t>(lattice.point_count()));
+      std::vector<double> sorted = sp;
+      std::sort(sorted.begin(), sorted.end());
+      const double small = std::max(sorted[sorted.size() / 10], 1e-9 + 1e-6 * sorted.back());
+      Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity()), high = -low;
+      for (int q = 0; q < lattice.point_count(); ++q) {
+        low = low.cwiseMin(system.positions[static_cast<std::size_t>(q)]);
+        high = high.cwiseMax(system.positions[static_cast<std::size_t>(q)]);
+      }
+      low.array() -= 3.0 * sorted.back();
+      high.array() += 3.0 * sorted.back();
+      distance_grid = std::make_unique<SignedDistanceGrid>(query, low, high, 0.25 * small, 4'000'000);
+    }
+    return *distance_grid;
+  };
   nlohmann::json& runs = report.runs;
   auto inverted_count = [&] { return inverted_tets(system.positions, tets); };
   report.inverted_before = inverted_count();
@@ -342,6 +371,46 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
             system.fixed[static_cast<std::size_t>(q)] = 1;
           }
     };
+    // Containment inside the energy (containment_energy): the free points near the surface or
+    // outside it, renewed each round, but the ring (held by its plane pins; it starts on the
+    // surface, half of it just outside, and its containment pulled against the unfolding: opendihu
+    // left biceps 14 -> 95 folded cells) and the fibre ends (held by their area pins and clamped
+    // onto the surface at the end).
+    const bool contain = options.containment_energy && (free_ring || options.containment_energy_everywhere);
+    UntangleContainment containment;
+    if (contain) {
+      SignedDistanceGrid& field = grid();
+      containment.signed_distance = [&field](const Vec3& p, Vec3* gradient) { return field(p, gradient); };
+    }
+    auto renew_containment = [&] {
+      if (!contain) return;
+      const std::vector<double> sp = lattice_local_spacing(system);
+      std::vector<int> candidates;
+      for (int k = 0; k < lattice.nz; ++k)
+        for (int j = 0; j < lattice.ny; ++j)
+          for (int i = 0; i < lattice.nx; ++i) {
+            const int q = lattice.index(i, j, k);
+            if (!system.fixed[static_cast<std::size_t>(q)] && !ring_anchor.count(q) && !end_anchor.count(q))
+              candidates.push_back(q);
+          }
+      std::vector<char> near(candidates.size(), 0);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t c = r.begin(); c < r.end(); ++c) {
+          const std::size_t q = static_cast<std::size_t>(candidates[c]);
+          near[c] = query.closest_point(system.positions[q]).distance < options.containment_band * sp[q] ? 1 : 0;
+        }
+      });
+      std::unordered_set<int> out(outside.begin(), outside.end());
+      containment.points.clear();
+      for (std::size_t c = 0; c < candidates.size(); ++c) {
+        const int q = candidates[c];
+        if (!near[c] && !out.count(q)) continue;
+        const double h = sp[static_cast<std::size_t>(q)];
+        containment.points.push_back({q, options.contact_weight / (h * h), options.containment_margin * h});
+      }
+    };
+    outside.clear();
+    renew_containment();
     long best_round = inverted_count();  // fewest folded tetrahedra after a round of this attempt
     long best_outside = -1;  // fewest points outside after a round of this attempt (-1: none yet)
     int outside_stalled = 0;  // rounds in a row since the last that left fewer outside
@@ -385,11 +454,13 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         for (char f : local_fixed) free += f ? 0 : 1;
         if (free == previous_free) break;
         previous_free = free;
-        const UntangleReport untangled = untangle(system.positions, local_fixed, tets, options.solver, anchors);
+        const UntangleReport untangled =
+            untangle(system.positions, local_fixed, tets, options.solver, anchors, containment);
         nlohmann::json run = untangled.to_json();
         run["radius"] = whole ? -1 : radius;
         run["round"] = round;
         run["anchors"] = anchors.size();
+        if (contain) run["contained"] = containment.points.size();
         runs.push_back(run);
         budget -= untangled.iterations;
         report.iterations += untangled.iterations;
@@ -435,6 +506,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         break;
       }
       renew_ring();
+      renew_containment();
       // The ends' balls follow them: round the area point nearest to where each end is now.
       if (by_area)
         for (const auto& [q, a] : end_anchor)
@@ -491,6 +563,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
                 query.side(system.positions[static_cast<std::size_t>(q)]) != Side::inside)
               outside.push_back(q);
           }
+      if (pass == 0) runs.back()["outside_at_finish"] = outside.size();
       if (outside.empty()) break;
       const std::vector<double> spacing = lattice_local_spacing(system);
       for (int q : outside) {

@@ -16,7 +16,8 @@
 /// held. While cells still stay folded, the last two run again with the surface ring free too
 /// (free_ring: each ring point held on a plane just under the surface, sliding along it; the ring
 /// is freed only after the attempts with it held, since a freed ring changes the coverage of
-/// muscles the held ring already unfolds). Containment is part of every attempt: a point moved
+/// muscles the held ring already unfolds; in these attempts the containment is also part of the
+/// untangling's energy, containment_energy). Containment is part of every attempt: a point moved
 /// outside gets a soft pin under the tangent plane at its closest surface point (stronger each
 /// round, sliding_contact); an attempt stops when a round does not fold fewer cells than the
 /// rounds before it (or, when asked, after `contact_stall_rounds` rounds in a row that did not
@@ -102,6 +103,28 @@ struct LatticeUntangleOptions {
   int pin_rounds = 3;
   /// Depth of a contact point below the surface, in local lattice spacings, (0, 1) (default 0.3).
   double contact_depth = 0.3;
+  /// Containment inside the untangling's energy (UntangleContainment, fibres/untangle.h) in the
+  /// attempts with the surface ring free: each free interior lattice point (not the ring, held by
+  /// its plane pins, nor the fibre ends, held by their area pins) within `containment_band` local
+  /// spacings h of the surface, or outside it, pays
+  /// contact_weight / h^2 * max(0, d + containment_margin h)^2 on its signed distance d to the
+  /// surface (a signed-distance grid of the muscle, morph/signed_distance_grid.h), the weight raised
+  /// 4x a stage while a point is outside, so that the unfolded lattice is already inside and the
+  /// pins at the end have few points to move; the soft pins of the rounds stay as they are (true);
+  /// or only the soft pins (false) (default false: in the corpus it took the LHDL psoas from 33 to
+  /// 2 folded cells and the opendihu left biceps from 123 to 14 (coverage p95 1.63), but folded
+  /// 16 cells of the biceps tracer, which passes without it: 44 of 47 pass instead of 45,
+  /// docs/BENCHMARKS.md "Containment inside the untangling energy").
+  bool containment_energy = false;
+  /// The same in every attempt, not only those with the ring free (default false).
+  bool containment_energy_everywhere = false;
+  /// Depth the containment energy pushes a point to, in local spacings, [0, 1) (default 0.15:
+  /// above the error of the grid's interpolation, whose cells are a quarter of the smaller
+  /// spacings).
+  double containment_margin = 0.15;
+  /// Points farther inside than this many local spacings are left out of the containment energy
+  /// (they cannot reach the surface in one run), > 0 (default 3).
+  double containment_band = 3.0;
   /// Throws OptionError naming the first bad field.
   void validate() const;
 };

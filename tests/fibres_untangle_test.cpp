@@ -292,6 +292,13 @@ TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
   CHECK_THROWS_AS(lattice_options.validate(), OptionError);
   lattice_options.contact_stall_rounds = 0;  // never stop for that: allowed
   CHECK_NOTHROW(lattice_options.validate());
+  lattice_options.containment_margin = 1.0;
+  CHECK_THROWS_AS(lattice_options.validate(), OptionError);
+  lattice_options.containment_margin = 0.15;
+  lattice_options.containment_band = 0.0;
+  CHECK_THROWS_AS(lattice_options.validate(), OptionError);
+  lattice_options.containment_band = 3.0;
+  CHECK_NOTHROW(lattice_options.validate());
   std::vector<UntangleTet> bad = g.tets;
   bad[0].v[2] = 1000;
   CHECK_THROWS_AS(untangle(g.positions, g.fixed, bad), Error);
@@ -299,6 +306,92 @@ TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
   nan[13].x() = std::nan("");
   CHECK_THROWS_AS(untangle(nan, g.fixed, g.tets), Error);
   CHECK_THROWS_AS(untangle(g.positions, g.fixed, g.tets, {}, {{0, Vec3::Zero(), -1.0}}), Error);
+}
+
+#include "morph/signed_distance_grid.h"
+#include "morph/surface_query.h"
+#include "tests/morph_test_shapes.h"
+
+TEST_CASE("untangle: containment in the energy brings a lattice pushed partly outside a surface back inside, unfolded",
+          "[fibres][untangle][containment]") {
+  // A 6 x 6 x 6 grid of the unit cube with its end layers (z = 0, z = 1) fixed, one interior point
+  // pushed through its neighbours (a fold); the closed surface is the box [0.05, 0.95]^2 x
+  // [-0.5, 1.5]: the lattice's sides stick out of it by 0.05. The untangling alone unfolds the cell
+  // and leaves the side points where their cells' shapes want them, outside; with the containment
+  // energy every free point ends inside the surface (the exact test), no tetrahedron folded.
+  TriangleMesh box = test::subdivided_cube(4);
+  for (Vec3& p : box.positions) p = Vec3(0.5 + 0.45 * p.x(), 0.5 + 0.45 * p.y(), 0.5 + p.z());
+  SurfaceQuery query(box);
+  auto make = [] {
+    Grid g = make_grid(6);
+    for (int k = 0; k < g.n; ++k)
+      for (int j = 0; j < g.n; ++j)
+        for (int i = 0; i < g.n; ++i) g.fixed[static_cast<std::size_t>(g.index(i, j, k))] = k == 0 || k == g.n - 1 ? 1 : 0;
+    g.positions[static_cast<std::size_t>(g.index(2, 2, 2))].z() += 0.35;
+    g.positions[static_cast<std::size_t>(g.index(3, 2, 3))].x() -= 0.3;
+    return g;
+  };
+  auto outside = [&](const Grid& g) {
+    long n = 0;
+    for (std::size_t q = 0; q < g.positions.size(); ++q) n += !g.fixed[q] && !query.inside(g.positions[q]) ? 1 : 0;
+    return n;
+  };
+  Grid plain = make();
+  REQUIRE(inverted(plain.positions, plain.tets) > 0);
+  REQUIRE(outside(plain) > 0);
+  const UntangleReport without = untangle(plain.positions, plain.fixed, plain.tets);
+  INFO("without: " << without.to_json().dump());
+  CHECK(without.untangled());
+  CHECK(outside(plain) > 0);  // unfolded, but the sides stay out
+
+  Grid g = make();
+  SignedDistanceGrid field(query, Vec3::Constant(-0.3), Vec3::Constant(1.3), 0.02);
+  UntangleContainment containment;
+  containment.signed_distance = [&field](const Vec3& p, Vec3* gradient) { return field(p, gradient); };
+  for (std::size_t q = 0; q < g.positions.size(); ++q)
+    if (!g.fixed[q]) containment.points.push_back({static_cast<int>(q), 30.0 / (0.2 * 0.2), 0.02});
+  const UntangleReport with = untangle(g.positions, g.fixed, g.tets, UntangleOptions{}, {}, containment);
+  INFO("with: " << with.to_json().dump());
+  CHECK(with.outside_before > 0);
+  CHECK(with.outside_after == 0);
+  CHECK(with.untangled());
+  CHECK(inverted(g.positions, g.tets) == 0);
+  CHECK(outside(g) == 0);
+  for (std::size_t q = 0; q < g.positions.size(); ++q)
+    if (!g.fixed[q]) CHECK(field.exact(g.positions[q]) < 0.0);
+
+  // Deterministic: the same result, bit for bit, on one thread.
+  Grid one = make();
+  {
+    tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+    SignedDistanceGrid field1(query, Vec3::Constant(-0.3), Vec3::Constant(1.3), 0.02);
+    UntangleContainment c1 = containment;
+    c1.signed_distance = [&field1](const Vec3& p, Vec3* gradient) { return field1(p, gradient); };
+    untangle(one.positions, one.fixed, one.tets, UntangleOptions{}, {}, c1);
+  }
+  CHECK(one.positions == g.positions);
+}
+
+TEST_CASE("signed distance grid: close to the sphere's distance, gradient along the radius, exact outside its box",
+          "[fibres][untangle][containment]") {
+  const TriangleMesh sphere = test::icosphere(4);
+  SurfaceQuery query(sphere);
+  SignedDistanceGrid field(query, Vec3::Constant(-1.5), Vec3::Constant(1.5), 0.05);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.4, 1.4);
+  for (int t = 0; t < 200; ++t) {
+    const Vec3 p(u(rng), u(rng), u(rng));
+    if (p.norm() < 0.3) continue;
+    Vec3 gradient;
+    const double d = field(p, &gradient);
+    CHECK(d == Approx(p.norm() - 1.0).margin(0.01));  // the icosphere's chords: ~0.003 under the sphere
+    if (std::abs(p.norm() - 1.0) > 0.02) CHECK((d < 0.0) == (p.norm() < 1.0));
+    if (std::abs(p.norm() - 1.0) > 0.1) CHECK(gradient.dot(p.normalized()) > 0.95);
+  }
+  // Outside the box: the exact value.
+  CHECK(field(Vec3(3.0, 0.0, 0.0)) == Approx(2.0).margin(1e-9));
+  CHECK(field.nodes_computed() > 0);
+  CHECK_THROWS_AS(SignedDistanceGrid(query, Vec3::Zero(), Vec3::Zero(), 0.1), Error);
 }
 
 #include "fibres/decompose.h"
