@@ -75,7 +75,13 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Measured on 2026-11-22 07:16-07:21 UTC (docs/BENCHMARKS.md,
+  // Floors, not the goal (every muscle). Since 2026-11-22 (ninth session) the decomposition settles
+  // with the portable spring loop on every processor (SettleOptions::portable_loop), so these
+  // figures no longer follow the processor's vector instructions; measured then on an AVX2
+  // processor (docs/BENCHMARKS.md, "Decompose", "Merged 2026-11-22, ninth session"): 45 of 47
+  // pass, 45 have no inverted cell, 47 have coverage p95 <= 2, 156 inverted cells in all (LHDL psoas
+  // 33, opendihu left biceps 123). The figures below were measured with the AVX-512 loop in the
+  // settle, whose rounding differs. Measured on 2026-11-22 07:16-07:21 UTC (docs/BENCHMARKS.md,
   // "Decompose", "Folds next to hooked ends"; the untangling's free-ring attempt): 45 of 47 pass
   // every criterion, 45 have no inverted cell, 46 have coverage p95 <= 2 (the opendihu left biceps,
   // which fails with 77 inverted cells, has 2.19), 106 inverted cells in all (LHDL psoas 29, left
@@ -89,10 +95,12 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // <= 2, 771 inverted cells in all (ends cast so that they turn the lattice's way, a second try
   // with the alternative placement for a muscle that fails with at most 50 inverted cells; with
   // the second try for every failing muscle 713, 21:15 UTC, for 18 s more batch wall time); at
-  // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below each (the total:
-  // about 4 % above), for a different processor's rounding.
+  // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below the ninth
+  // session's figures (two for coverage) and the total about 25 % above its 156: libm's
+  // processor-specific variants (glibc picks FMA versions of some functions at run time) may still
+  // round differently elsewhere, and the untangling's attempts are sensitive to round-off.
   CHECK(passed >= 44);
   CHECK(unfolded >= 44);
   CHECK(covered >= 45);
-  CHECK(inverted <= 130);
+  CHECK(inverted <= 195);
 }
