@@ -125,7 +125,7 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--tolerance", o.settle.tolerance, "Stop the settle at this relative residual")->capture_default_str();
   cmd->add_option("--max-iterations", o.settle.max_iterations, "Iteration cap of the settle")->capture_default_str();
   cmd->add_option("--portable-loop", o.settle.portable_loop,
-                  "Settle with the portable spring loop, the same fibres on every processor (true), or the fastest "
+                  "Settle with the portable spring loop, the same settle on every processor (true), or the fastest "
                   "loop the processor has (false)")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute, verlet) or auto")

@@ -353,7 +353,9 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   s.solver = springs::SolverKind::static_equilibrium;
   s.tolerance = 1e-6;
   s.max_iterations = 20000;
-  // The same fibres on every processor: the untangling after the settle turns last-bit differences
+  // A settle that does not depend on the processor's vector instructions (the portable loop is the
+  // same bit for bit everywhere; libm's processor-specific variants elsewhere may still round
+  // differently in rare cases): the untangling after the settle turns last-bit differences
   // of the settled lattice into different folds (the opendihu biceps tracer: 0 folded cells with
   // the portable loop, 25 with the AVX2 loop, one try, 2026-11-22, docs/BENCHMARKS.md "Spring loop
   // for processors without AVX-512"), and a lattice of a few thousand points settles in
