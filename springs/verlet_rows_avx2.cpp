@@ -91,12 +91,12 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
   __m256i largest;
   __m256d fv;
   // Full rows (see the AVX-512 loop): every vector but the last runs without masks.
-  bool full = Directions == kMaxDirections && r.integrate && r.along_x >= 0;
+  bool full = r.integrate && r.along_x >= 0;
   bool arrays = false;  // per-point stiffness
   long group_offset[4][3] = {};
   const double* group_k[4][3] = {};
   double group_ku[4][3] = {};
-  if (Directions == kMaxDirections) {
+  if constexpr (Directions == kMaxDirections) {
     for (int g = 0; g < 4; ++g) {
       full = full && r.group_push[g][0];
       for (int s = 0; s < 3; ++s) {
@@ -109,6 +109,13 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
       }
     }
     if (r.along_x >= 0) arrays = arrays || r.k[r.along_x];
+  } else {
+    // Model-6: a row whose directions all exist and push (not the last row of a tile's strip,
+    // nor a row at a face) runs its vectors but the last without lane checks.
+    for (int d = 0; d < Directions; ++d) {
+      full = full && r.valid[d] && (d == r.along_x || r.push[d][0]) && (d == r.along_x || r.dx[d] == 0);
+      arrays = arrays || r.k[d];
+    }
   }
   long ahead = 0;  // software prefetch distance (see the AVX-512 loop)
   for (int d = 0; d < r.directions; ++d) ahead = std::max(ahead, r.offset[d]);
@@ -122,7 +129,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
   auto vector = [&](long i, auto kind) __attribute__((target("avx2,fma"), always_inline)) {
     constexpr int Kind = decltype(kind)::value;
     const long left = nx - i;
-    const unsigned row_mask = left >= kLanes ? kFull : (1u << left) - 1u;
+    const unsigned row_mask = Kind != 0 || left >= kLanes ? kFull : (1u << left) - 1u;
     const __m256d s[3] = {load4(row_mask, x[0] + i), load4(row_mask, x[1] + i), load4(row_mask, x[2] + i)};
     if ((i & 7) == 0)  // one line per array and 8 points
       for (int c = 0; c < 3; ++c) {
@@ -203,6 +210,28 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         minus_carry[c] = back;
         own[c] = _mm256_add_pd(_mm256_add_pd(own[c], own_up[c]), back_up);
       }
+    } else if constexpr (Kind != 0) {
+      // Model-6, a vector of a full row: the loop below without its checks (every direction
+      // valid and pushed, every lane's target in the row), the same operations in the same order.
+#pragma GCC unroll 3
+      for (int d = 0; d < Directions; ++d) {
+        const __m256d k = Kind == 2 ? _mm256_loadu_pd(r.k[d] + i) : _mm256_set1_pd(r.ku[d]);
+        __m256d l[3];
+        const __m256d w = spring_weight<false>(kFull, x, i + r.offset[d], s, k, l);
+        if (d == r.along_x) {
+          for (int c = 0; c < 3; ++c) {
+            along[c] = _mm256_mul_pd(w, l[c]);
+            own[c] = _mm256_add_pd(own[c], along[c]);
+          }
+        } else {
+          for (int c = 0; c < 3; ++c) own[c] = _mm256_fmadd_pd(w, l[c], own[c]);
+          for (int c = 0; c < 3; ++c) {
+            double* target = r.push[d][c] + i;
+            const __m256d before = d == kModel6FirstPush ? _mm256_setzero_pd() : _mm256_loadu_pd(target);
+            _mm256_storeu_pd(target, _mm256_fnmadd_pd(w, l[c], before));
+          }
+        }
+      }
     } else {
 #pragma GCC unroll 13
       for (int d = 0; d < Directions; ++d) {
@@ -243,7 +272,10 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
       }
     }
     std::uint32_t packed = 0;  // the 4 fixed flags (fewer at the row's end)
-    std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= kLanes ? kLanes : left));
+    if (Kind != 0 || left >= kLanes)  // a fixed-size copy is one load; a variable one, a loop
+      std::memcpy(&packed, r.fixed + i, kLanes);
+    else
+      std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left));
     const __m256i flags = _mm256_cvtepu8_epi64(_mm_cvtsi32_si128(static_cast<int>(packed)));
     const __m256i is_free = _mm256_and_si256(_mm256_cmpeq_epi64(flags, _mm256_setzero_si256()), lanes_of(row_mask));
     const __m256d f2 = _mm256_fmadd_pd(force[2], force[2],
@@ -277,7 +309,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
     largest = _mm256_setzero_si256();
     fv = _mm256_setzero_pd();
     for (long i = 0; i < nx; i += kLanes) {
-      if constexpr (Directions == kMaxDirections) {
+      {
         if (full && i + kLanes < nx) {
           if (arrays) vector(i, std::integral_constant<int, 2>());
           else vector(i, std::integral_constant<int, 1>());
