@@ -3,8 +3,13 @@
 // machines that hide AVX-512). It is the AVX-512 loop of springs/verlet_structured.cpp (read its
 // comments for the method: own springs summed in registers, pushes into the target rows, lane
 // shifts for the springs along x and, on model-26 lattices, for the dx = -1 springs and the
-// groups of one target row) with 4 points a vector; the springs, pushes and sums are made in the
-// same order. It differs in three places:
+// groups of one target row) with 4 points a vector; the springs and pushes are the same. It
+// differs in four places:
+// - Model-26 order: a group's three springs are made one after another, each added into the
+//   point's own sum and the group's push at once, and the dx = -1 sum starts from minus the
+//   along-x force. The AVX-512 loop holds the group's three springs at once and sums in another
+//   order; with AVX2's 16 vector registers that spilled (about 15 % less time at 50^3 on one
+//   thread, docs/BENCHMARKS.md). The sums differ from the AVX-512 loop's by rounding.
 // - 1 / |l|: AVX2 has no double-precision estimate of the inverse square root. The estimate is
 //   VRSQRTPS of l2 rounded to single precision (relative error below 1.5 * 2^-12), refined in
 //   double by one fourth-order step y = y0 (1 + e/2 + 3/8 e^2 + 5/16 e^3), e = 1 - l2 y0^2
@@ -166,49 +171,58 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
       const unsigned next_mask = Kind == 0 && left <= kLanes ? row_mask >> 1 : kFull;
       __m256d next[3];  // the sources of the dx = -1 springs
       for (int c = 0; c < 3; ++c) next[c] = Kind == 0 ? load4(next_mask, x[c] + i + 1) : _mm256_loadu_pd(x[c] + i + 1);
-      __m256d own_up[3] = {_mm256_setzero_pd(), _mm256_setzero_pd(), _mm256_setzero_pd()};  // dx = +1
-      __m256d minus[3] = {_mm256_setzero_pd(), _mm256_setzero_pd(), _mm256_setzero_pd()};   // dx = -1
+      // dx = -1 springs: the force on their sources (one lane on), less the along-x springs' force
+      // on theirs (see back_up below).
+      __m256d minus[3] = {_mm256_setzero_pd(), _mm256_setzero_pd(), _mm256_setzero_pd()};
       if (Kind != 0 || r.along_x >= 0) {
         __m256d l[3];
         const __m256d w = spring(Kind == 0 ? r.along_x : 15, true, 0, s, l);
         for (int c = 0; c < 3; ++c) {
           along[c] = _mm256_mul_pd(w, l[c]);
           own[c] = _mm256_add_pd(own[c], along[c]);
+          minus[c] = _mm256_sub_pd(minus[c], along[c]);
         }
       }
+      // A group's springs one after another, each added into the group's push (`sum`) at once:
+      // with 16 vector registers, fewer values live at a time (own, minus, sum, one spring).
 #pragma GCC unroll 4
       for (int g = 0; g < 4; ++g) {
         if (Kind == 0 && !r.integrate && !r.group_push[g][0]) continue;
         const int dm = Kind == 0 ? r.group[g][0] : 4 * g;
         const int d0 = Kind == 0 ? r.group[g][1] : 4 * g + 1;
         const int dp = Kind == 0 ? r.group[g][2] : 4 * g + 2;
-        __m256d lm[3], l0[3], lp[3];
-        const __m256d wm = spring(dm, Kind != 0 || r.valid[dm], 1, next, lm);
-        const __m256d w0 = spring(d0, Kind != 0 || r.valid[d0], 0, s, l0);
-        const __m256d wp = spring(dp, Kind != 0 || r.valid[dp], 0, s, lp);
         const bool push = Kind != 0 || r.group_push[g][0];
+        __m256d sum[3], l[3];
+        __m256d w = spring(dp, Kind != 0 || r.valid[dp], 0, s, l);
         for (int c = 0; c < 3; ++c) {
-          const __m256d fp = _mm256_mul_pd(wp, lp[c]);
-          own[c] = _mm256_fmadd_pd(w0, l0[c], own[c]);
-          own_up[c] = _mm256_add_pd(own_up[c], fp);
-          minus[c] = _mm256_fmadd_pd(wm, lm[c], minus[c]);
+          const __m256d fp = _mm256_mul_pd(w, l[c]);
+          own[c] = _mm256_add_pd(own[c], fp);
           if (!push) continue;
-          const __m256d up = shift_up(fp, group_carry[g][c]);
+          sum[c] = shift_up(fp, group_carry[g][c]);
           group_carry[g][c] = fp;
-          const __m256d sum = _mm256_fmadd_pd(wm, lm[c], _mm256_fmadd_pd(w0, l0[c], up));
+        }
+        w = spring(d0, Kind != 0 || r.valid[d0], 0, s, l);
+        for (int c = 0; c < 3; ++c) {
+          own[c] = _mm256_fmadd_pd(w, l[c], own[c]);
+          if (push) sum[c] = _mm256_fmadd_pd(w, l[c], sum[c]);
+        }
+        w = spring(dm, Kind != 0 || r.valid[dm], 1, next, l);
+        for (int c = 0; c < 3; ++c) {
+          minus[c] = _mm256_fmadd_pd(w, l[c], minus[c]);
+          if (!push) continue;
+          sum[c] = _mm256_fmadd_pd(w, l[c], sum[c]);
           double* target = r.group_push[g][c] + i;
           const bool first = g == kFirstPushGroup;  // stored without reading the row
           if (Kind == 0)
-            store4(row_mask, target, _mm256_sub_pd(first ? _mm256_setzero_pd() : load4(row_mask, target), sum));
+            store4(row_mask, target, _mm256_sub_pd(first ? _mm256_setzero_pd() : load4(row_mask, target), sum[c]));
           else
-            _mm256_storeu_pd(target, _mm256_sub_pd(first ? _mm256_setzero_pd() : _mm256_loadu_pd(target), sum));
+            _mm256_storeu_pd(target, _mm256_sub_pd(first ? _mm256_setzero_pd() : _mm256_loadu_pd(target), sum[c]));
         }
       }
       for (int c = 0; c < 3; ++c) {
-        const __m256d back = _mm256_sub_pd(minus[c], along[c]);
-        const __m256d back_up = shift_up(back, minus_carry[c]);
-        minus_carry[c] = back;
-        own[c] = _mm256_add_pd(_mm256_add_pd(own[c], own_up[c]), back_up);
+        const __m256d back_up = shift_up(minus[c], minus_carry[c]);
+        minus_carry[c] = minus[c];
+        own[c] = _mm256_add_pd(own[c], back_up);
       }
     } else if constexpr (Kind != 0) {
       // Model-6, a vector of a full row: the loop below without its checks (every direction
