@@ -1,5 +1,7 @@
 #include "fibres/untangle.h"
 
+#include "fibres/untangle_terms.h"
+
 #include "geometry/errors.h"
 
 #include <Eigen/LU>
@@ -124,7 +126,32 @@ class Energy {
     // block's tetrahedra overlap in the processor where one tetrahedron after the other would
     // wait on each. The same operations in the same order as tetrahedron by tetrahedron: the
     // result is the same to the bit.
+    // With AVX2, four tetrahedra a vector (fibres/untangle_terms.h: the same operations, the same
+    // bits), the rest of the range below.
+    const bool simd = untangle_simd_;
     auto terms = [&](std::size_t begin, std::size_t end) {
+      if (simd) {
+        double p[12][4], r[9][4], weight[4], epsv[4], term[4], grad[9][4];
+        for (; begin + 4 <= end; begin += 4) {
+          for (int l = 0; l < 4; ++l) {
+            const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[begin + static_cast<std::size_t>(l)])];
+            for (int v = 0; v < 4; ++v) {
+              const Vec3& point = positions_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
+              for (int c = 0; c < 3; ++c) p[3 * v + c][l] = point[c];
+            }
+            for (int k = 0; k < 9; ++k) r[k][l] = tet.reference_inverse.data()[k];
+            weight[l] = tet.weight;
+            epsv[l] = std::max(eps, tet.eps_floor);
+          }
+          detail::untangle_terms_avx2(p, r, weight, epsv, lambda_, g != nullptr, term, grad);
+          for (int l = 0; l < 4; ++l) {
+            const std::size_t a = begin + static_cast<std::size_t>(l);
+            terms_[a] = term[l];
+            if (g)
+              for (int k = 0; k < 9; ++k) gradients_[a].data()[k] = grad[k][l];
+          }
+        }
+      }
       Eigen::Matrix3d js[kBlock];
       double dets[kBlock], epss[kBlock], cs[kBlock], c23s[kBlock];
       for (std::size_t b0 = begin; b0 < end; b0 += kBlock) {
@@ -218,6 +245,7 @@ class Energy {
   const UntangleContainment& containment_;
   std::vector<UntangleContainment::Point> contained_;  // the containment's free points
   double lambda_;
+  bool untangle_simd_ = detail::untangle_simd_active();  // the AVX2 terms (fibres/untangle_terms.h)
   std::vector<int> slot_, free_, active_;
   std::vector<double> terms_;              // each active tetrahedron's energy term
   std::vector<Eigen::Matrix3d> gradients_;  // and its gradient by the edge vectors (columns)

@@ -2,6 +2,7 @@
 #include "fibres/fibre_grid.h"
 #include "fibres/untangle.h"
 #include "fibres/untangle_lattice.h"
+#include "fibres/untangle_terms.h"
 #include "geometry/errors.h"
 
 #include <catch2/catch.hpp>
@@ -269,6 +270,57 @@ TEST_CASE("untangle: the energy's terms computed on several threads give the ser
   CHECK(parallel.evaluations == serial.evaluations);
   CHECK(parallel.min_det_after == serial.min_det_after);  // bitwise
   CHECK(threads == one_thread);                            // bitwise
+}
+
+TEST_CASE("untangle: the AVX2 energy terms give the scalar code's result, bit for bit", "[fibres][untangle]") {
+  // The vector path (fibres/untangle_terms.h) must make every rounding of the scalar one: the
+  // same positions, iterations and min det J to the bit. Reference cells from a jittered grid
+  // (entries of every size in the reference inverses, not the cube's zeros and ones), weights and
+  // eps floors that vary, 12^3 cells less one tetrahedron (not a multiple of the 4 lanes), and
+  // points pushed through their neighbours.
+  if (!detail::untangle_terms_avx2_supported()) {
+    WARN("this processor has no AVX2: the vector path is not run here");
+    return;
+  }
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> jitter(-0.2, 0.2), unit(0.0, 1.0);
+  Grid g = make_grid(13);
+  const double h = 1.0 / 12.0;
+  std::vector<Vec3> reference = g.positions;
+  for (std::size_t q = 0; q < reference.size(); ++q)
+    if (!g.fixed[q]) reference[q] += h * Vec3(jitter(rng), jitter(rng), jitter(rng));
+  for (UntangleTet& tet : g.tets) {
+    Eigen::Matrix3d s;
+    for (int col = 0; col < 3; ++col)
+      s.col(col) = reference[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])] -
+                   reference[static_cast<std::size_t>(tet.v[0])];
+    REQUIRE(s.determinant() > 0.0);
+    tet.reference_inverse = s.inverse();
+    tet.weight = 0.5 + unit(rng);
+    if (unit(rng) < 0.1) tet.eps_floor = 1e-3 * unit(rng);
+  }
+  g.tets.pop_back();
+  g.positions = reference;
+  for (int i = 0; i < 12; ++i) {
+    const std::size_t q = static_cast<std::size_t>(g.index(1 + static_cast<int>(rng() % 11), 1 + static_cast<int>(rng() % 11),
+                                                           1 + static_cast<int>(rng() % 11)));
+    g.positions[q] += 1.5 * h * Vec3(jitter(rng), jitter(rng), jitter(rng)) / 0.2;
+  }
+  REQUIRE(inverted(g.positions, g.tets) > 0);
+  REQUIRE(g.tets.size() % 4 != 0);
+  std::vector<Vec3> scalar = g.positions, vector = g.positions;
+  detail::set_untangle_simd(false);
+  const UntangleReport a = untangle(scalar, g.fixed, g.tets);
+  detail::set_untangle_simd(true);
+  REQUIRE(detail::untangle_simd_active());
+  const UntangleReport b = untangle(vector, g.fixed, g.tets);
+  INFO("scalar: " << a.to_json().dump() << "\nAVX2: " << b.to_json().dump());
+  CHECK(a.iterations > 30);
+  CHECK(b.iterations == a.iterations);
+  CHECK(b.evaluations == a.evaluations);
+  CHECK(b.min_det_after == a.min_det_after);  // bitwise
+  CHECK(vector == scalar);                    // bitwise
+  CHECK(vector != g.positions);               // it moved
 }
 
 TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
