@@ -287,8 +287,8 @@ FarSamples far_samples(const std::vector<Vec3>& samples, const std::vector<doubl
   }
   const double extent = hi > lo ? hi - lo : 1.0;
   std::vector<double> depth(samples.size());
-  tbb::parallel_for(std::size_t(0), samples.size(),
-                    [&](std::size_t i) { depth[i] = query.closest_point(samples[i]).distance / spacing; });
+  const std::vector<SurfacePoint> nearest = query.closest_points(samples);
+  for (std::size_t i = 0; i < samples.size(); ++i) depth[i] = nearest[i].distance / spacing;
   long far_count = 0;
   for (std::size_t i = 0; i < samples.size(); ++i) {
     const bool is_far = distances[i] / spacing > threshold;

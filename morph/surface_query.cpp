@@ -13,7 +13,10 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <cstdint>
 #include <mutex>
 #include <numeric>
 #include <optional>
@@ -176,19 +179,74 @@ SurfaceQuery::SurfaceQuery(const TriangleMesh& mesh) : impl_(std::make_unique<Im
 
 SurfaceQuery::~SurfaceQuery() = default;
 
-SurfacePoint SurfaceQuery::closest_point(const Vec3& p) const {
-  const auto hit = impl_->tree.closest_point_and_primitive(to_point(p));
+namespace {
+
+// Interleaves the low 10 bits of x, y, z (Morton order).
+std::uint32_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  auto spread = [](std::uint32_t v) {
+    v &= 0x3FFu;
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+  };
+  return spread(x) | (spread(y) << 1) | (spread(z) << 2);
+}
+
+// The closest point `hit` of the tree (point, triangle) as a SurfacePoint of `mesh`.
+SurfacePoint surface_point(const TriangleMesh& mesh, const std::vector<Triangle3>& triangles, const Vec3& p,
+                           const std::pair<Point, Iterator>& hit) {
   SurfacePoint result;
-  result.face = static_cast<int>(hit.second - impl_->triangles.cbegin());
-  const Triangle& t = impl_->mesh.triangles[result.face];
-  const Vec3& a = impl_->mesh.positions[t[0]];
-  const Vec3& b = impl_->mesh.positions[t[1]];
-  const Vec3& c = impl_->mesh.positions[t[2]];
+  result.face = static_cast<int>(hit.second - triangles.cbegin());
+  const Triangle& t = mesh.triangles[result.face];
+  const Vec3& a = mesh.positions[t[0]];
+  const Vec3& b = mesh.positions[t[1]];
+  const Vec3& c = mesh.positions[t[2]];
   result.barycentric = triangle_barycentric(to_vec(hit.first), a, b, c);
   result.position = result.barycentric[0] * a + result.barycentric[1] * b + result.barycentric[2] * c;
   result.distance = (result.position - p).norm();
   return result;
 }
+
+}  // namespace
+
+SurfacePoint SurfaceQuery::closest_point(const Vec3& p) const {
+  return surface_point(impl_->mesh, impl_->triangles, p, impl_->tree.closest_point_and_primitive(to_point(p)));
+}
+
+std::vector<SurfacePoint> SurfaceQuery::closest_points(const std::vector<Vec3>& points) const {
+  std::vector<SurfacePoint> out(points.size());
+  if (points.empty()) return out;
+  Vec3 lo = points.front(), hi = points.front();
+  for (const Vec3& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Vec3 extent = (hi - lo).cwiseMax(Vec3::Constant(1e-300));
+  std::vector<std::pair<std::uint32_t, std::size_t>> order(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3 u = ((points[i] - lo).cwiseQuotient(extent) * 1023.0).cwiseMax(Vec3::Zero()).cwiseMin(Vec3::Constant(1023.0));
+    order[i] = {morton3(static_cast<std::uint32_t>(u.x()), static_cast<std::uint32_t>(u.y()), static_cast<std::uint32_t>(u.z())), i};
+  }
+  std::sort(order.begin(), order.end());
+  // Runs of consecutive points along the curve, one task each; a run's first query searches for
+  // its start (the tree's own hint), the others start from the previous closest point.
+  constexpr std::size_t kRun = 256;
+  const std::size_t runs = (points.size() + kRun - 1) / kRun;
+  tbb::parallel_for(std::size_t(0), runs, [&](std::size_t run) {
+    const std::size_t begin = run * kRun, end = std::min(points.size(), begin + kRun);
+    Tree::Point_and_primitive_id hint;
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::size_t i = order[k].second;
+      const Point q = to_point(points[i]);
+      hint = k == begin ? impl_->tree.closest_point_and_primitive(q) : impl_->tree.closest_point_and_primitive(q, hint);
+      out[i] = surface_point(impl_->mesh, impl_->triangles, points[i], hint);
+    }
+  });
+  return out;
+}
+
 
 Side SurfaceQuery::side(const Vec3& p) const {
   // Built on first use: most callers only need closest points.

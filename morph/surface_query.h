@@ -41,6 +41,14 @@ class SurfaceQuery {
   /// distance.
   SurfacePoint closest_point(const Vec3& p) const;
 
+  /// closest_point of every point, for many points at once (threads): the points are visited in
+  /// the order of a space-filling curve, and each query starts from the previous one's closest
+  /// point (a tight first bound, no search for a start). The closest point is the same as
+  /// closest_point's wherever one triangle is closest; where several are equally close (a point
+  /// nearest to an edge or a vertex), either may be returned, the position then differing only
+  /// by rounding.
+  std::vector<SurfacePoint> closest_points(const std::vector<Vec3>& points) const;
+
   /// Exact side of `p` with respect to the closed surface (precondition: the mesh is closed;
   /// on an open mesh the answer is meaningless).
   Side side(const Vec3& p) const;

@@ -171,3 +171,35 @@ TEST_CASE("first_hit finds the hit of a test of every triangle, to the bit", "[m
   CHECK(hits > 300);
   CHECK(misses > 20);
 }
+
+TEST_CASE("closest_points gives closest_point's answer for many points at once", "[morph][locate]") {
+  // Points inside, outside and far away, in random order (the batch sorts them along a curve and
+  // starts each query from the previous answer): the same face and position where one triangle
+  // is closest, the same distance to rounding everywhere; an empty batch is empty.
+  const TriangleMesh mesh = test::bent_capsule(1.0, 15.0, 16, 120.0);
+  const SurfaceQuery query(mesh);
+  std::mt19937 random(4);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<Vec3> points;
+  for (int i = 0; i < 3000; ++i) {
+    const double scale = i % 10 == 0 ? 40.0 : 6.0;
+    points.emplace_back(scale * unit(random), scale * unit(random), 7.5 + 1.5 * scale * unit(random));
+  }
+  const std::vector<SurfacePoint> batch = query.closest_points(points);
+  REQUIRE(batch.size() == points.size());
+  long same_face = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const SurfacePoint one = query.closest_point(points[i]);
+    CHECK(batch[i].distance == Approx(one.distance).epsilon(1e-12).margin(1e-12));
+    if (batch[i].face == one.face) {
+      ++same_face;
+      CHECK((batch[i].position.array() == one.position.array()).all());
+      CHECK(batch[i].distance == one.distance);
+    } else {  // a tie: the same point, on an edge or a vertex shared by both faces
+      CHECK((batch[i].position - one.position).norm() <= 1e-9);
+    }
+  }
+  // Far points are mostly nearest to a vertex (six faces tie); most others find the same face.
+  CHECK(same_face > 1500);
+  CHECK(query.closest_points({}).empty());
+}
