@@ -88,6 +88,35 @@ class Energy {
       for (int v : tets[t].v) any = any || slot_[static_cast<std::size_t>(v)] >= 0;
       if (any) active_.push_back(static_cast<int>(t));
     }
+    // Per active tetrahedron: its vertices' slots, and its constants one array an entry (the
+    // vector path loads four tetrahedra's at once); per free point, the (tetrahedron, corner)
+    // pairs it is a corner of, in the tetrahedra's order (the gradient's sum, point by point).
+    const std::size_t n = active_.size();
+    std::vector<std::array<int, 4>> corner_slots(n);
+    corner_points_.resize(n);
+    for (auto& k : reference_) k.resize(n);
+    weight_.resize(n);
+    eps_floor_.resize(n);
+    std::vector<int> count(free_.size() + 1, 0);
+    for (std::size_t a = 0; a < n; ++a) {
+      const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
+      corner_points_[a] = tet.v;
+      for (int v = 0; v < 4; ++v) {
+        corner_slots[a][static_cast<std::size_t>(v)] = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
+        if (corner_slots[a][static_cast<std::size_t>(v)] >= 0) ++count[static_cast<std::size_t>(corner_slots[a][static_cast<std::size_t>(v)]) + 1];
+      }
+      for (int k = 0; k < 9; ++k) reference_[static_cast<std::size_t>(k)][a] = tet.reference_inverse.data()[k];
+      weight_[a] = tet.weight;
+      eps_floor_[a] = tet.eps_floor;
+    }
+    for (std::size_t f = 0; f < free_.size(); ++f) count[f + 1] += count[f];
+    corner_row_ = count;
+    corners_.resize(static_cast<std::size_t>(count.back()));
+    for (std::size_t a = 0; a < n; ++a)
+      for (int v = 0; v < 4; ++v) {
+        const int s = corner_slots[a][static_cast<std::size_t>(v)];
+        if (s >= 0) corners_[static_cast<std::size_t>(count[static_cast<std::size_t>(s)]++)] = static_cast<int>(4 * a + static_cast<std::size_t>(v));
+      }
     if (containment.active())
       for (const UntangleContainment::Point& c : containment.points)
         if (slot_[static_cast<std::size_t>(c.point)] >= 0) contained_.push_back(c);
@@ -119,7 +148,8 @@ class Energy {
     if (g) g->setZero(x.size());
     const std::size_t n = active_.size();
     terms_.resize(n);
-    if (g) gradients_.resize(n);
+    if (g)
+      for (auto& k : gradients_) k.resize(n);
     // In blocks of kBlock tetrahedra, one step at a time over the block (the Jacobians and chi,
     // then c^(2/3), then the terms and gradients): a tetrahedron's arithmetic is a long chain of
     // dependent operations (square root, four Newton steps, divisions), and the chains of a
@@ -131,25 +161,23 @@ class Energy {
     const bool simd = untangle_simd_;
     auto terms = [&](std::size_t begin, std::size_t end) {
       if (simd) {
-        double p[12][4], r[9][4], weight[4], epsv[4], term[4], grad[9][4];
+        double p[12][4];
         for (; begin + 4 <= end; begin += 4) {
           for (int l = 0; l < 4; ++l) {
-            const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[begin + static_cast<std::size_t>(l)])];
+            const std::array<int, 4>& corners = corner_points_[begin + static_cast<std::size_t>(l)];
             for (int v = 0; v < 4; ++v) {
-              const Vec3& point = positions_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
+              const Vec3& point = positions_[static_cast<std::size_t>(corners[static_cast<std::size_t>(v)])];
               for (int c = 0; c < 3; ++c) p[3 * v + c][l] = point[c];
             }
-            for (int k = 0; k < 9; ++k) r[k][l] = tet.reference_inverse.data()[k];
-            weight[l] = tet.weight;
-            epsv[l] = std::max(eps, tet.eps_floor);
           }
-          detail::untangle_terms_avx2(p, r, weight, epsv, lambda_, g != nullptr, term, grad);
-          for (int l = 0; l < 4; ++l) {
-            const std::size_t a = begin + static_cast<std::size_t>(l);
-            terms_[a] = term[l];
-            if (g)
-              for (int k = 0; k < 9; ++k) gradients_[a].data()[k] = grad[k][l];
+          const double* r[9];
+          double* gradient[9];
+          for (std::size_t k = 0; k < 9; ++k) {
+            r[k] = reference_[k].data() + begin;
+            gradient[k] = g ? gradients_[k].data() + begin : nullptr;
           }
+          detail::untangle_terms_avx2(p, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
+                                      terms_.data() + begin, g ? gradient : nullptr);
         }
       }
       Eigen::Matrix3d js[kBlock];
@@ -180,7 +208,8 @@ class Energy {
           // d volume / dJ = (2 det / c - (det^2 + 1) dc / c^2) cof
           const Eigen::Matrix3d dj = (1.0 - lambda_) * (2.0 / c23 * j - (2.0 / 3.0) * shape / c * dc * cof) +
                                      lambda_ * (2.0 * det / c - (det * det + 1.0) * dc / (c * c)) * cof;
-          gradients_[a] = tet.weight * dj * tet.reference_inverse.transpose();
+          const Eigen::Matrix3d gradient = tet.weight * dj * tet.reference_inverse.transpose();
+          for (std::size_t k = 0; k < 9; ++k) gradients_[k][a] = gradient.data()[k];
         }
       }
     };
@@ -190,19 +219,35 @@ class Energy {
     else
       terms(0, n);
     double e = 0.0;
-    for (std::size_t a = 0; a < n; ++a) {
-      e += terms_[a];
-      if (!g) continue;
-      const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
-      const Eigen::Matrix3d& dd = gradients_[a];
-      Vec3 g0 = Vec3::Zero();
-      for (int col = 0; col < 3; ++col) {
-        const int s = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])];
-        if (s >= 0) g->segment<3>(3 * s) += dd.col(col);
-        g0 -= dd.col(col);
-      }
-      const int s0 = slot_[static_cast<std::size_t>(tet.v[0])];
-      if (s0 >= 0) g->segment<3>(3 * s0) += g0;
+    for (std::size_t a = 0; a < n; ++a) e += terms_[a];
+    if (g) {
+      // Each free point's gradient: its corners' columns (corner 0: minus the sum of the three)
+      // added in the tetrahedra's order, as one loop over the tetrahedra would; points in
+      // parallel.
+      auto gather = [&](std::size_t f0, std::size_t f1) {
+        for (std::size_t f = f0; f < f1; ++f) {
+          Vec3 sum = Vec3::Zero();
+          for (int k = corner_row_[f]; k < corner_row_[f + 1]; ++k) {
+            const std::size_t a = static_cast<std::size_t>(corners_[static_cast<std::size_t>(k)]) / 4;
+            const int corner = corners_[static_cast<std::size_t>(k)] % 4;
+            Vec3 column;
+            if (corner > 0) {
+              for (int row = 0; row < 3; ++row) column[row] = gradients_[static_cast<std::size_t>(row + 3 * (corner - 1))][a];
+            } else {
+              column = Vec3::Zero();
+              for (int col = 0; col < 3; ++col)
+                for (int row = 0; row < 3; ++row) column[row] -= gradients_[static_cast<std::size_t>(row + 3 * col)][a];
+            }
+            sum += column;
+          }
+          g->segment<3>(3 * static_cast<Eigen::Index>(f)) = sum;
+        }
+      };
+      if (n >= kParallelTets)
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, free_.size(), 256),
+                          [&](const tbb::blocked_range<std::size_t>& r) { gather(r.begin(), r.end()); });
+      else
+        gather(0, free_.size());
     }
     for (const UntangleAnchor& a : anchors_) {
       const int s = slot_[static_cast<std::size_t>(a.point)];
@@ -247,8 +292,16 @@ class Energy {
   double lambda_;
   bool untangle_simd_ = detail::untangle_simd_active();  // the AVX2 terms (fibres/untangle_terms.h)
   std::vector<int> slot_, free_, active_;
-  std::vector<double> terms_;              // each active tetrahedron's energy term
-  std::vector<Eigen::Matrix3d> gradients_;  // and its gradient by the edge vectors (columns)
+  std::vector<double> terms_;  // each active tetrahedron's energy term
+  // and its gradient by the edge vectors, entry k (column-major) of every tetrahedron in gradients_[k]
+  std::array<std::vector<double>, 9> gradients_;
+  // Per active tetrahedron: its reference inverse (entry k in reference_[k]), weight and eps
+  // floor; per free point f, corners_[corner_row_[f] ..
+  // corner_row_[f + 1]) = 4 a + corner of the tetrahedra it is a corner of, in order.
+  std::vector<std::array<int, 4>> corner_points_;  // each active tetrahedron's points
+  std::array<std::vector<double>, 9> reference_;
+  std::vector<double> weight_, eps_floor_;
+  std::vector<int> corner_row_, corners_;
 };
 
 struct Census {

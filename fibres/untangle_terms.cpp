@@ -71,9 +71,9 @@ FASCICLE_AVX2 __m256d two_thirds_power4(__m256d c) {
 
 }  // namespace
 
-__attribute__((target("avx2"))) void untangle_terms_avx2(const double p[12][4], const double r[9][4],
-                                                         const double weight[4], const double eps[4], double lambda,
-                                                         bool gradient, double term[4], double grad[9][4]) {
+__attribute__((target("avx2"))) void untangle_terms_avx2(const double p[12][4], const double* const r[9],
+                                                         const double* weight, const double* eps_floor, double eps,
+                                                         double lambda, double* term, double* const* grad) {
   // D: the edge vectors (columns), D(row, col) = p[col + 1][row] - p[0][row].
   __m256d d[9];
   for (int col = 0; col < 3; ++col)
@@ -94,7 +94,8 @@ __attribute__((target("avx2"))) void untangle_terms_avx2(const double p[12][4], 
     return mul(m(0, a), sub(mul(m(1, b), m(2, c)), mul(m(1, c), m(2, b))));
   };
   const __m256d det = add(sub(h(0, 1, 2), h(1, 0, 2)), h(2, 0, 1));
-  const __m256d e = _mm256_loadu_pd(eps);
+  // std::max(eps, floor): the floor where it is larger, else eps
+  const __m256d e = _mm256_max_pd(_mm256_loadu_pd(eps_floor), set(eps));
   const __m256d root = _mm256_sqrt_pd(add(mul(e, e), mul(det, det)));
   const __m256d half = set(0.5), one = set(1.0);
   const __m256d c = mul(half, add(det, root));
@@ -108,7 +109,7 @@ __attribute__((target("avx2"))) void untangle_terms_avx2(const double p[12][4], 
   const __m256d w = _mm256_loadu_pd(weight);
   const __m256d l1 = set(1.0 - lambda), lam = set(lambda);
   _mm256_storeu_pd(term, mul(w, add(mul(l1, shape), mul(lam, volume))));
-  if (!gradient) return;
+  if (!grad) return;
   const __m256d dc = mul(half, add(one, div(det, root)));
   __m256d cof[9];
   auto cross = [&](int a, int b, int out) __attribute__((target("avx2"), always_inline)) {
@@ -140,8 +141,8 @@ __attribute__((target("avx2"))) void untangle_terms_avx2(const double p[12][4], 
 #else
 
 bool untangle_terms_avx2_supported() { return false; }
-void untangle_terms_avx2(const double[12][4], const double[9][4], const double[4], const double[4], double, bool,
-                         double[4], double[9][4]) {}
+void untangle_terms_avx2(const double[12][4], const double* const[9], const double*, const double*, double, double,
+                         double*, double* const*) {}
 
 #endif
 

@@ -10,13 +10,14 @@
 
 namespace fascicle::detail {
 
-/// Four tetrahedra, lane l = tetrahedron l. p[3 v + c][l]: coordinate c of vertex v;
-/// r[k][l]: entry k of the reference inverse, column-major; eps[l]: the tetrahedron's eps
-/// (max(eps, eps_floor)). Writes term[l] = weight ((1 - lambda) shape + lambda volume) and, with
-/// `gradient`, grad[k][l]: entry k (column-major) of the term's gradient by the edge vectors.
-/// Call only where untangle_terms_avx2_supported().
-void untangle_terms_avx2(const double p[12][4], const double r[9][4], const double weight[4], const double eps[4],
-                         double lambda, bool gradient, double term[4], double grad[9][4]);
+/// Four tetrahedra, lane l = tetrahedron l. p[3 v + c][l]: coordinate c of vertex v; r[k]:
+/// entry k of the four reference inverses (column-major), four consecutive values; weight and
+/// eps_floor likewise (the tetrahedron's eps is max(eps, eps_floor)). Writes term[0..3] =
+/// weight ((1 - lambda) shape + lambda volume) and, where `grad` is not null, grad[k][0..3]:
+/// entry k (column-major) of the terms' gradients by the edge vectors. Call only where
+/// untangle_terms_avx2_supported().
+void untangle_terms_avx2(const double p[12][4], const double* const r[9], const double* weight, const double* eps_floor,
+                         double eps, double lambda, double* term, double* const* grad);
 
 /// Whether the processor runs untangle_terms_avx2 (AVX2), and the switch tests use to compare
 /// (set_untangle_simd(false): the scalar code only).
