@@ -122,6 +122,28 @@ struct LatticeUntangleOptions {
   /// above the error of the grid's interpolation, whose cells are a quarter of the smaller
   /// spacings).
   double containment_margin = 0.15;
+  /// With the containment energy: the freed fibre ends are in it too, so that the clamp at the end
+  /// of the attempt (each end pulled back within end_area_margin of its area, and onto the surface
+  /// when outside) has little to move and folds nothing: each end pays the containment penalty at
+  /// containment_end_margin local spacings deep, and, in place of its area pin of fixed weight, a
+  /// ball round its nearest area point (renewed each round) that pulls beyond 0.8 of
+  /// end_area_margin with end_anchor_weight / h^2 times the containment's scale (raised 4x a stage
+  /// while an end is beyond end_area_margin or a point outside) (true); or the ends keep their
+  /// fixed-weight area pins (false). Only with attachment areas (default true).
+  bool containment_ends = true;
+  /// Depth the containment energy pushes a freed fibre end to, in local spacings, [0, 1)
+  /// (default 0.05: just inside, so that an end the penalty holds does not hover on the surface,
+  /// where the stages would count it outside).
+  double containment_end_margin = 0.05;
+  /// The containment energy's scale is raised only after a stage that did not fold fewer
+  /// tetrahedra than the stage before (UntangleContainment::patient: soft while the cells unfold)
+  /// (true), or after every stage that leaves a point outside (false) (default false).
+  bool containment_patient = false;
+  /// When the free-ring attempts leave folds, they run once more with the containment energy
+  /// switched (on when containment_energy is false, off when it is true), from the settled lattice;
+  /// the result with the fewest folded cells after its pins stays (the earlier on a tie), so that
+  /// muscles the first setting unfolds never pay for the second (default false).
+  bool containment_retry = false;
   /// Points farther inside than this many local spacings are left out of the containment energy
   /// (they cannot reach the surface in one run), > 0 (default 3).
   double containment_band = 3.0;
