@@ -336,7 +336,8 @@ void add_batch_command(CLI::App& app) {
                            "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius",
                            "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-ends",
                            "--untangle-containment-end-margin", "--untangle-containment-retry",
-                           "--untangle-containment-patient"}) {
+                           "--untangle-containment-patient", "--untangle-containment-ring",
+                           "--untangle-containment-end-ball", "--untangle-containment-iterations"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

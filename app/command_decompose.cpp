@@ -227,6 +227,16 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--untangle-containment-end-margin", o.untangle.containment_end_margin,
                   "Untangling: depth (local spacings) the containment energy pushes a freed fibre end to")
       ->capture_default_str();
+  cmd->add_option("--untangle-containment-ring", o.untangle.containment_ring,
+                  "Untangling: with the containment energy, the freed surface ring is in it too")
+      ->capture_default_str();
+  cmd->add_option("--untangle-containment-end-ball", o.untangle.containment_end_ball,
+                  "Untangling: with --untangle-containment-ends, the ends' area pins are replaced by a ball whose weight "
+                  "is raised with the containment's")
+      ->capture_default_str();
+  cmd->add_option("--untangle-containment-iterations", o.untangle.containment_iterations,
+                  "Untangling: L-BFGS iterations of an attempt with the containment energy")
+      ->capture_default_str();
   cmd->add_option("--untangle-containment-patient", o.untangle.containment_patient,
                   "Untangling: raise the containment energy's weight only after a stage that did not fold fewer "
                   "cells than the one before")

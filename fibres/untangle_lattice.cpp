@@ -29,6 +29,8 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("end_area_margin: must be in [0, 1), got " + std::to_string(end_area_margin));
   if (!(contact_weight > 0.0 && contact_weight < 1e12))
     throw OptionError("untangle contact_weight: must be in (0, 1e12), got " + std::to_string(contact_weight));
+  if (containment_iterations < 0 || containment_iterations > 10'000'000)
+    throw OptionError("untangle containment_iterations: must be in 0..10000000, got " + std::to_string(containment_iterations));
   if (pin_rounds < 0 || pin_rounds > 100)
     throw OptionError("untangle pin_rounds: must be in 0..100, got " + std::to_string(pin_rounds));
   if (contact_stall_rounds < 0 || contact_stall_rounds > 100)
@@ -188,6 +190,9 @@ namespace {
 // counts as outside (the clamp at the end of the attempt puts it onto the surface).
 constexpr double kEndTolerance = 0.1;
 
+// Depth (local spacings) the containment energy pushes a freed ring point to (containment_ring).
+constexpr double kRingMargin = 0.05;
+
 std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
   std::vector<int> out;
   for (std::size_t q = 0; q < system.positions.size(); ++q)
@@ -317,7 +322,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
             UntangleAnchor a{q, x, options.end_anchor_weight / (h * h)};
             // Ends in the containment energy (contain_ends below): the ball there holds them; the
             // anchor stays, without weight, so that the local regions still grow round the ends.
-            if (contain && options.containment_ends && by_area) a.weight = 0.0;
+            if (contain && options.containment_ends && options.containment_end_ball && by_area) a.weight = 0.0;
             if (by_area) {
               // Free within a ball round the nearest area point (renewed each round).
               a.target = nearest_area_point(area_of(q), x);
@@ -422,6 +427,11 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         const double h = sp[static_cast<std::size_t>(q)];
         containment.points.push_back({q, options.contact_weight / (h * h), options.containment_margin * h});
       }
+      if (options.containment_ring)
+        for (const auto& [q, a] : ring_anchor) {
+          const double h = sp[static_cast<std::size_t>(q)];
+          containment.points.push_back({q, options.contact_weight / (h * h), kRingMargin * h});
+        }
       containment.balls.clear();
       if (contain_ends)
         for (const auto& [q, a] : end_anchor) {
@@ -433,8 +443,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           // 207 points outside at the start, 437 folded tetrahedra left).
           containment.points.push_back({q, options.contact_weight / (h * h), options.containment_end_margin * h,
                                         kEndTolerance * h});
-          containment.balls.push_back({q, nearest_area_point(area_of(q), x), options.end_anchor_weight / (h * h),
-                                       area_ball, area_limit});
+          if (options.containment_end_ball)
+            containment.balls.push_back({q, nearest_area_point(area_of(q), x), options.end_anchor_weight / (h * h),
+                                         area_ball, area_limit});
         }
       // In the order of the points (end_anchor is a hash map): the result must not depend on it.
       std::sort(containment.balls.begin(), containment.balls.end(),
@@ -633,7 +644,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
                       const std::string& name) {
     system.positions = from;
     system.fixed = settled_fixed;
-    budget = options.iterations;
+    budget = contain ? options.containment_iterations : options.iterations;
     attempt(free_ends, free_ring, contain);
     if (free_ends) free_result = system.positions;
     runs.push_back({{"attempt", name}});

@@ -8,6 +8,8 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <tbb/global_control.h>
@@ -589,4 +591,44 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
     CHECK(q.attachment.insertion_max <= 0.02);
     CHECK(q.coverage.p95 <= 2.0);
   }
+}
+
+TEST_CASE("untangle in the decomposition: the free-ring attempts run again with the containment energy where they "
+          "leave folds",
+          "[fibres][untangle][data][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  // LHDL right psoas: with the surface ring free and without the containment energy, 33 cells stay
+  // folded (the pins at the end fold them: 53 tetrahedra); the retry with the containment energy
+  // leaves 2 (docs/BENCHMARKS.md, "Decompose", 2026-11-22, tenth session). Without the retry
+  // (containment_retry false) the contained attempts never run and the 33 stay.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
+  DecomposeOptions options;
+  options.retry_alternative = false;  // this case is about the untangling of one placement
+  REQUIRE(options.untangle.containment_retry);
+  REQUIRE_FALSE(options.untangle.containment_energy);
+  const Decomposition d = decompose(soup, {}, options);
+  const nlohmann::json u = d.report.to_json()["untangle"];
+  INFO(u["kept"].dump() << " " << d.report.quality.inverted_cells);
+  // The folded tetrahedra after each attempt's pins, by attempt name.
+  std::map<std::string, long> finished;
+  std::string current;
+  for (const nlohmann::json& run : u["runs"]) {
+    if (run.contains("attempt")) current = run["attempt"].get<std::string>();
+    if (run.contains("finished") && !current.empty()) finished[current] = run["finished"].get<long>();
+  }
+  REQUIRE(finished.count("free_ring"));
+  REQUIRE(finished.count("free_ring_contained"));  // the retry ran
+  CHECK(finished["free_ring"] > 0);                 // because the first free-ring attempt left folds
+  const long contained = std::min(finished["free_ring_contained"],
+                                  finished.count("free_ring_contained_then_held_ends")
+                                      ? finished["free_ring_contained_then_held_ends"]
+                                      : std::numeric_limits<long>::max());
+  CHECK(contained < finished["free_ring"]);
+  CHECK(u["kept"].get<std::string>().rfind("free_ring_contained", 0) == 0);
+  CHECK(u["inverted_left"].get<long>() == contained);
+  CHECK(d.report.quality.inverted_cells < 33);
+  CHECK(d.report.quality.inside_fraction == 1.0);
+  CHECK(d.report.quality.coverage.p95 <= 2.0);
+  CHECK(d.report.quality.attachment.origin_max <= 0.02);
+  CHECK(d.report.quality.attachment.insertion_max <= 0.02);
 }
