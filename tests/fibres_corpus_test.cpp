@@ -75,7 +75,13 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Since 2026-11-22 (ninth session) the decomposition settles
+  // Floors, not the goal (every muscle). Tenth session, 2026-11-22 14:05-14:16 UTC (docs/BENCHMARKS.md,
+  // "Decompose", "Fibre ends in the containment energy"), the free-ring attempts retried with the
+  // containment energy where they leave folds (containment_retry): 45 of 47 pass, 45 have no
+  // inverted cell, 47 have coverage p95 <= 2, 16 inverted cells in all (LHDL psoas 2, opendihu
+  // left biceps 14; main: 33 and 123). The total's floor keeps room for round-off: these two
+  // muscles' attempts swing by tens of cells between neighbouring settings.
+  // Since 2026-11-22 (ninth session) the decomposition settles
   // with the portable spring loop on every processor (SettleOptions::portable_loop), so these
   // figures no longer follow the processor's vector instructions; measured then on an AVX2
   // processor (docs/BENCHMARKS.md, "Decompose", "Merged 2026-11-22, ninth session"): 45 of 47
@@ -102,5 +108,5 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   CHECK(passed >= 44);
   CHECK(unfolded >= 44);
   CHECK(covered >= 45);
-  CHECK(inverted <= 195);
+  CHECK(inverted <= 60);
 }

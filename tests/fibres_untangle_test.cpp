@@ -9,6 +9,8 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <tbb/global_control.h>
@@ -351,6 +353,10 @@ TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
   CHECK_THROWS_AS(lattice_options.validate(), OptionError);
   lattice_options.containment_band = 3.0;
   CHECK_NOTHROW(lattice_options.validate());
+  lattice_options.containment_end_margin = -0.1;
+  CHECK_THROWS_AS(lattice_options.validate(), OptionError);
+  lattice_options.containment_end_margin = 0.05;
+  CHECK_NOTHROW(lattice_options.validate());
   std::vector<UntangleTet> bad = g.tets;
   bad[0].v[2] = 1000;
   CHECK_THROWS_AS(untangle(g.positions, g.fixed, bad), Error);
@@ -422,6 +428,51 @@ TEST_CASE("untangle: containment in the energy brings a lattice pushed partly ou
     untangle(one.positions, one.fixed, one.tets, UntangleOptions{}, {}, c1);
   }
   CHECK(one.positions == g.positions);
+}
+
+TEST_CASE("untangle: a containment ball holds a point within its limit where a pin of fixed weight lets it go",
+          "[fibres][untangle][containment]") {
+  // A folded 6^3 grid (one interior point pushed through its neighbours) and a second interior
+  // point that must end within 0.03 of a place 0.1 along x from where its cells want it (a fibre
+  // end that must stay near its attachment area while the cells around it unfold). A ball pin of
+  // fixed weight (UntangleAnchor with a radius) pulls it only part of the way: the cells win and
+  // it ends beyond the limit. The containment ball of the same weight and radius counts the point
+  // outside while it is beyond the limit and raises its scale: it ends within the limit, nothing
+  // folded, and no signed distance is needed.
+  auto make = [] {
+    Grid g = make_grid(6);
+    g.positions[static_cast<std::size_t>(g.index(2, 2, 2))].z() += 0.35;
+    return g;
+  };
+  const int q = make().index(3, 3, 3);
+  const Vec3 centre = make().positions[static_cast<std::size_t>(q)] + Vec3(0.1, 0.0, 0.0);
+  const double weight = 30.0 / (0.2 * 0.2), radius = 0.8 * 0.03, limit = 0.03;
+  Grid pinned = make();
+  REQUIRE(inverted(pinned.positions, pinned.tets) > 0);
+  UntangleAnchor pin{q, centre, weight};
+  pin.radius = radius;
+  const UntangleReport a = untangle(pinned.positions, pinned.fixed, pinned.tets, UntangleOptions{}, {pin});
+  INFO("pin: " << a.to_json().dump());
+  CHECK(a.untangled());
+  CHECK((pinned.positions[static_cast<std::size_t>(q)] - centre).norm() > limit);
+
+  Grid held = make();
+  UntangleContainment containment;
+  containment.balls.push_back({q, centre, weight, radius, limit});
+  REQUIRE(containment.active());
+  const UntangleReport b = untangle(held.positions, held.fixed, held.tets, UntangleOptions{}, {}, containment);
+  INFO("ball: " << b.to_json().dump());
+  CHECK(b.outside_before == 1);
+  CHECK(b.outside_after == 0);
+  CHECK(b.containment_scale > 1.0);
+  CHECK(b.untangled());
+  CHECK(inverted(held.positions, held.tets) == 0);
+  CHECK((held.positions[static_cast<std::size_t>(q)] - centre).norm() <= limit);
+
+  // A ball whose limit is under its radius is refused.
+  containment.balls[0].limit = 0.5 * radius;
+  Grid bad = make();
+  CHECK_THROWS_AS(untangle(bad.positions, bad.fixed, bad.tets, UntangleOptions{}, {}, containment), Error);
 }
 
 TEST_CASE("signed distance grid: close to the sphere's distance, gradient along the radius, exact outside its box",
@@ -592,4 +643,44 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
     CHECK(q.attachment.insertion_max <= 0.02);
     CHECK(q.coverage.p95 <= 2.0);
   }
+}
+
+TEST_CASE("untangle in the decomposition: the free-ring attempts run again with the containment energy where they "
+          "leave folds",
+          "[fibres][untangle][data][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  // LHDL right psoas: with the surface ring free and without the containment energy, 33 cells stay
+  // folded (the pins at the end fold them: 53 tetrahedra); the retry with the containment energy
+  // leaves 2 (docs/BENCHMARKS.md, "Decompose", 2026-11-22, tenth session). Without the retry
+  // (containment_retry false) the contained attempts never run and the 33 stay.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
+  DecomposeOptions options;
+  options.retry_alternative = false;  // this case is about the untangling of one placement
+  REQUIRE(options.untangle.containment_retry);
+  REQUIRE_FALSE(options.untangle.containment_energy);
+  const Decomposition d = decompose(soup, {}, options);
+  const nlohmann::json u = d.report.to_json()["untangle"];
+  INFO(u["kept"].dump() << " " << d.report.quality.inverted_cells);
+  // The folded tetrahedra after each attempt's pins, by attempt name.
+  std::map<std::string, long> finished;
+  std::string current;
+  for (const nlohmann::json& run : u["runs"]) {
+    if (run.contains("attempt")) current = run["attempt"].get<std::string>();
+    if (run.contains("finished") && !current.empty()) finished[current] = run["finished"].get<long>();
+  }
+  REQUIRE(finished.count("free_ring"));
+  REQUIRE(finished.count("free_ring_contained"));  // the retry ran
+  CHECK(finished["free_ring"] > 0);                 // because the first free-ring attempt left folds
+  const long contained = std::min(finished["free_ring_contained"],
+                                  finished.count("free_ring_contained_then_held_ends")
+                                      ? finished["free_ring_contained_then_held_ends"]
+                                      : std::numeric_limits<long>::max());
+  CHECK(contained < finished["free_ring"]);
+  CHECK(u["kept"].get<std::string>().rfind("free_ring_contained", 0) == 0);
+  CHECK(u["inverted_left"].get<long>() == contained);
+  CHECK(d.report.quality.inverted_cells < 33);
+  CHECK(d.report.quality.inside_fraction == 1.0);
+  CHECK(d.report.quality.coverage.p95 <= 2.0);
+  CHECK(d.report.quality.attachment.origin_max <= 0.02);
+  CHECK(d.report.quality.attachment.insertion_max <= 0.02);
 }
