@@ -334,10 +334,7 @@ void add_batch_command(CLI::App& app) {
                            "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest", "--corner-twist",
                            "--even-perimeter", "--retry", "--retry-max-inverted", "--landmark-strip",
                            "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius",
-                           "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-ends",
-                           "--untangle-containment-end-margin", "--untangle-containment-retry",
-                           "--untangle-containment-patient", "--untangle-containment-ring",
-                           "--untangle-containment-end-ball", "--untangle-containment-iterations"}) {
+                           "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-retry"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

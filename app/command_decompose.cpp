@@ -220,27 +220,6 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--untangle-containment-margin", o.untangle.containment_margin,
                   "Untangling: depth (local spacings) the containment energy pushes a point to")
       ->capture_default_str();
-  cmd->add_option("--untangle-containment-ends", o.untangle.containment_ends,
-                  "Untangling: with the containment energy, the freed fibre ends are in it too (pushed just inside, "
-                  "and held near their attachment areas by a penalty raised with the containment's)")
-      ->capture_default_str();
-  cmd->add_option("--untangle-containment-end-margin", o.untangle.containment_end_margin,
-                  "Untangling: depth (local spacings) the containment energy pushes a freed fibre end to")
-      ->capture_default_str();
-  cmd->add_option("--untangle-containment-ring", o.untangle.containment_ring,
-                  "Untangling: with the containment energy, the freed surface ring is in it too")
-      ->capture_default_str();
-  cmd->add_option("--untangle-containment-end-ball", o.untangle.containment_end_ball,
-                  "Untangling: with --untangle-containment-ends, the ends' area pins are replaced by a ball whose weight "
-                  "is raised with the containment's")
-      ->capture_default_str();
-  cmd->add_option("--untangle-containment-iterations", o.untangle.containment_iterations,
-                  "Untangling: L-BFGS iterations of an attempt with the containment energy")
-      ->capture_default_str();
-  cmd->add_option("--untangle-containment-patient", o.untangle.containment_patient,
-                  "Untangling: raise the containment energy's weight only after a stage that did not fold fewer "
-                  "cells than the one before")
-      ->capture_default_str();
   cmd->add_option("--untangle-containment-retry", o.untangle.containment_retry,
                   "Untangling: when the attempts with the surface ring free leave folds, run them again with the "
                   "containment energy switched and keep the result with fewer folded cells")

@@ -120,17 +120,12 @@ class Energy {
     if (containment.signed_distance)
       for (const UntangleContainment::Point& c : containment.points)
         if (slot_[static_cast<std::size_t>(c.point)] >= 0) contained_.push_back(c);
-    for (const UntangleContainment::Ball& b : containment.balls)
-      if (slot_[static_cast<std::size_t>(b.point)] >= 0) balls_.push_back(b);
   }
-  // Free containment points outside (signed distance > 0) or beyond their ball's limit at the
-  // current positions.
+  // Free containment points outside (signed distance > 0) at the current positions.
   long outside_count() const {
     long n = 0;
     for (const UntangleContainment::Point& c : contained_)
-      n += containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], nullptr) > c.tolerance ? 1 : 0;
-    for (const UntangleContainment::Ball& b : balls_)
-      n += (positions_[static_cast<std::size_t>(b.point)] - b.centre).norm() > b.limit ? 1 : 0;
+      n += containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], nullptr) > 0.0 ? 1 : 0;
     return n;
   }
   // Multiplier of the containment weights (raised by the stages while a point is outside).
@@ -284,15 +279,6 @@ class Energy {
       e += w * over * over;
       if (g) g->segment<3>(3 * slot_[static_cast<std::size_t>(c.point)]) += 2.0 * w * over * gradient;
     }
-    // Balls: weight max(0, |x - centre| - radius)^2, with the same scale.
-    for (const UntangleContainment::Ball& b : balls_) {
-      const Vec3 d = positions_[static_cast<std::size_t>(b.point)] - b.centre;
-      const double r = d.norm();
-      if (!(r > b.radius)) continue;
-      const double w = b.weight * containment_scale;
-      e += w * (r - b.radius) * (r - b.radius);
-      if (g) g->segment<3>(3 * slot_[static_cast<std::size_t>(b.point)]) += 2.0 * w * (r - b.radius) / r * d;
-    }
     return e;
   }
   int evaluations = 0;
@@ -303,7 +289,6 @@ class Energy {
   const std::vector<UntangleAnchor>& anchors_;
   const UntangleContainment& containment_;
   std::vector<UntangleContainment::Point> contained_;  // the containment's free points
-  std::vector<UntangleContainment::Ball> balls_;        // and its free ball points
   double lambda_;
   bool untangle_simd_ = detail::untangle_simd_active();  // the AVX2 terms (fibres/untangle_terms.h)
   std::vector<int> slot_, free_, active_;
@@ -473,13 +458,8 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     if (!(containment.growth >= 1.0) || !(containment.max_scale >= 1.0))
       throw Error(ErrorCode::internal, "untangle: containment growth and max_scale must be >= 1");
     for (const UntangleContainment::Point& c : containment.points)
-      if (c.point < 0 || static_cast<std::size_t>(c.point) >= positions.size() || !(c.weight >= 0.0) || !(c.margin >= 0.0) ||
-          !(c.tolerance >= 0.0))
+      if (c.point < 0 || static_cast<std::size_t>(c.point) >= positions.size() || !(c.weight >= 0.0) || !(c.margin >= 0.0))
         throw Error(ErrorCode::internal, "untangle: bad containment point " + std::to_string(c.point));
-    for (const UntangleContainment::Ball& b : containment.balls)
-      if (b.point < 0 || static_cast<std::size_t>(b.point) >= positions.size() || !(b.weight >= 0.0) ||
-          !b.centre.allFinite() || !(b.radius >= 0.0) || !(b.limit >= b.radius))
-        throw Error(ErrorCode::internal, "untangle: bad containment ball of point " + std::to_string(b.point));
   }
   for (const Vec3& p : positions)
     if (!p.allFinite()) throw Error(ErrorCode::internal, "untangle: a point is not finite");
@@ -506,7 +486,6 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     long best_outside = outside;
     int stalled = 0;
     for (int stage = 0; stage < options.max_stages; ++stage) {
-      const long stage_inverted = now.inverted;  // inverted before this stage (patient containment)
       report.iterations += minimise(energy, x, eps, options.stage_iterations, options.history);
       ++report.stages;
       report.eps = eps;
@@ -534,7 +513,7 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       // The containment tightens each stage that leaves a point outside (raised only once every
       // tetrahedron was positive, it never was where one fold outlasted the stages, and hundreds of
       // points went out: LHDL psoas 51 folded cells after the pins, opendihu left biceps 123).
-      if (outside > 0 && (!containment.patient || now.inverted == 0 || now.inverted >= stage_inverted))
+      if (outside > 0)
         energy.containment_scale = std::min(containment.max_scale, energy.containment_scale * containment.growth);
       e_prev = energy.evaluate(x, eps, nullptr);
     }

@@ -98,42 +98,20 @@ using SignedDistanceFunction = std::function<double(const Vec3& point, Vec3* gra
 ///     weight * scale * max(0, d(x) + margin)^2,
 /// d the signed distance, so the minimum the untangling seeks already has the points at least
 /// `margin` inside. `scale` starts at 1 and is multiplied by `growth` after each eps stage that
-/// leaves a listed point outside (d > its tolerance), at most `max_scale`; the stages go on while a
-/// listed point is outside even when no tetrahedron is inverted (the barrier then keeps the cells unfolded while
-/// the penalty pulls the points in).
-///
-/// Balls (`balls`) are the same kind of constraint for points that must stay near a place (a fibre
-/// end near its attachment area): each free ball point pays
-///     weight * scale * max(0, |x - centre| - radius)^2
-/// with the same scale, and counts as outside (raises the scale, keeps the stages going) while
-/// |x - centre| > limit (limit >= radius: the penalty starts to pull before the point is out).
+/// leaves a listed point outside (d > 0), at most `max_scale`; the stages go on while a listed
+/// point is outside even when no tetrahedron is inverted (the barrier then keeps the cells
+/// unfolded while the penalty pulls the points in).
 struct UntangleContainment {
   struct Point {
     int point = 0;
     double weight = 0.0;  ///< energy per squared length unit, >= 0
     double margin = 0.0;  ///< depth it is pushed to, length units, >= 0
-    /// Signed distance above which it counts as outside (raises the scale, keeps the stages going),
-    /// length units, >= 0 (default 0; a point that may lie on the surface, whose penalty holds it
-    /// there only within round-off, needs more).
-    double tolerance = 0.0;
   };
-  struct Ball {
-    int point = 0;
-    Vec3 centre = Vec3::Zero();
-    double weight = 0.0;  ///< energy per squared length unit, >= 0
-    double radius = 0.0;  ///< free ball round the centre, >= 0
-    double limit = 0.0;   ///< distance from the centre beyond which the point counts as outside, >= radius
-  };
-  SignedDistanceFunction signed_distance;  ///< empty: no signed-distance containment (the balls still count)
+  SignedDistanceFunction signed_distance;  ///< empty: no containment
   std::vector<Point> points;
-  std::vector<Ball> balls;
   double growth = 4.0;       ///< factor of the scale per stage with a point outside, >= 1 (default 4)
   double max_scale = 4096.0; ///< largest scale, >= 1 (default 4096 = 4^6)
-  /// The scale is raised only after a stage that left a point outside and did not fold fewer
-  /// tetrahedra than the stage before it (true: the containment stays soft while the cells unfold),
-  /// or after every stage that left a point outside (false) (default false).
-  bool patient = false;
-  bool active() const { return (signed_distance && !points.empty()) || !balls.empty(); }
+  bool active() const { return signed_distance && !points.empty(); }
 };
 
 /// What untangle() did.

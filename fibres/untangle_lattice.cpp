@@ -29,8 +29,6 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("end_area_margin: must be in [0, 1), got " + std::to_string(end_area_margin));
   if (!(contact_weight > 0.0 && contact_weight < 1e12))
     throw OptionError("untangle contact_weight: must be in (0, 1e12), got " + std::to_string(contact_weight));
-  if (containment_iterations < 0 || containment_iterations > 10'000'000)
-    throw OptionError("untangle containment_iterations: must be in 0..10000000, got " + std::to_string(containment_iterations));
   if (pin_rounds < 0 || pin_rounds > 100)
     throw OptionError("untangle pin_rounds: must be in 0..100, got " + std::to_string(pin_rounds));
   if (contact_stall_rounds < 0 || contact_stall_rounds > 100)
@@ -45,8 +43,6 @@ void LatticeUntangleOptions::validate() const {
     throw OptionError("untangle contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
   if (!(containment_margin >= 0.0 && containment_margin < 1.0))
     throw OptionError("untangle containment_margin: must be in [0, 1), got " + std::to_string(containment_margin));
-  if (!(containment_end_margin >= 0.0 && containment_end_margin < 1.0))
-    throw OptionError("untangle containment_end_margin: must be in [0, 1), got " + std::to_string(containment_end_margin));
   if (!(containment_band > 0.0 && containment_band < 1e6))
     throw OptionError("untangle containment_band: must be in (0, 1e6), got " + std::to_string(containment_band));
 }
@@ -186,13 +182,6 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 
 namespace {
 
-// How far (local spacings) a freed fibre end in the containment energy may lie outside before it
-// counts as outside (the clamp at the end of the attempt puts it onto the surface).
-constexpr double kEndTolerance = 0.1;
-
-// Depth (local spacings) the containment energy pushes a freed ring point to (containment_ring).
-constexpr double kRingMargin = 0.05;
-
 std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
   std::vector<int> out;
   for (std::size_t q = 0; q < system.positions.size(); ++q)
@@ -320,9 +309,6 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
             end_anchor[q] = anchors.size();
             cast_place[q] = x;
             UntangleAnchor a{q, x, options.end_anchor_weight / (h * h)};
-            // Ends in the containment energy (contain_ends below): the ball there holds them; the
-            // anchor stays, without weight, so that the local regions still grow round the ends.
-            if (contain && options.containment_ends && options.containment_end_ball && by_area) a.weight = 0.0;
             if (by_area) {
               // Free within a ball round the nearest area point (renewed each round).
               a.target = nearest_area_point(area_of(q), x);
@@ -389,14 +375,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     // outside it, renewed each round, but the ring (held by its plane pins; it starts on the
     // surface, half of it just outside, and its containment pulled against the unfolding: opendihu
     // left biceps 14 -> 95 folded cells) and the fibre ends (held by their area pins and clamped
-    // onto the surface at the end).
-    // With containment_ends, the freed ends are in it too (containment_end_margin deep, and a ball
-    // round their nearest area point that pulls beyond 0.8 of end_area_margin, with the same
-    // growing scale, in place of their fixed-weight area pins), so that the clamp at the end of the
-    // attempt has little to move.
-    const bool contain_ends = contain && options.containment_ends && free_ends && by_area;
+    // onto the surface at the end). The points are listed in index order (the result must not
+    // depend on a hash map's order).
     UntangleContainment containment;
-    containment.patient = options.containment_patient;
     if (contain) {
       SignedDistanceGrid& field = grid();
       containment.signed_distance = [&field](const Vec3& p, Vec3* gradient) { return field(p, gradient); };
@@ -427,31 +408,6 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         const double h = sp[static_cast<std::size_t>(q)];
         containment.points.push_back({q, options.contact_weight / (h * h), options.containment_margin * h});
       }
-      if (options.containment_ring)
-        for (const auto& [q, a] : ring_anchor) {
-          const double h = sp[static_cast<std::size_t>(q)];
-          containment.points.push_back({q, options.contact_weight / (h * h), kRingMargin * h});
-        }
-      containment.balls.clear();
-      if (contain_ends)
-        for (const auto& [q, a] : end_anchor) {
-          const double h = sp[static_cast<std::size_t>(q)];
-          const Vec3& x = system.positions[static_cast<std::size_t>(q)];
-          // Counted outside only beyond kEndTolerance h: an end starts on the surface (the cast), half
-          // of it just outside by the grid's interpolation, and a scale raised for that from the
-          // first stage stiffens the containment before the cells unfold (opendihu biceps tracer:
-          // 207 points outside at the start, 437 folded tetrahedra left).
-          containment.points.push_back({q, options.contact_weight / (h * h), options.containment_end_margin * h,
-                                        kEndTolerance * h});
-          if (options.containment_end_ball)
-            containment.balls.push_back({q, nearest_area_point(area_of(q), x), options.end_anchor_weight / (h * h),
-                                         area_ball, area_limit});
-        }
-      // In the order of the points (end_anchor is a hash map): the result must not depend on it.
-      std::sort(containment.balls.begin(), containment.balls.end(),
-                [](const UntangleContainment::Ball& a, const UntangleContainment::Ball& b) { return a.point < b.point; });
-      std::sort(containment.points.begin(), containment.points.end(),
-                [](const UntangleContainment::Point& a, const UntangleContainment::Point& b) { return a.point < b.point; });
     };
     outside.clear();
     renew_containment();
@@ -644,7 +600,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
                       const std::string& name) {
     system.positions = from;
     system.fixed = settled_fixed;
-    budget = contain ? options.containment_iterations : options.iterations;
+    budget = options.iterations;
     attempt(free_ends, free_ring, contain);
     if (free_ends) free_result = system.positions;
     runs.push_back({{"attempt", name}});

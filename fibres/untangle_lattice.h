@@ -121,47 +121,11 @@ struct LatticeUntangleOptions {
   bool containment_energy_everywhere = false;
   /// Depth the containment energy pushes a point to, in local spacings, [0, 1) (default 0.15:
   /// above the error of the grid's interpolation, whose cells are a quarter of the smaller
-  /// spacings).
+  /// spacings). (Variants measured and removed, each worse on the LHDL psoas and the opendihu left
+  /// biceps: the freed fibre ends in the containment energy with a ball round their areas, the
+  /// freed ring in it, a scale raised only after stages that fold no fewer cells, a larger
+  /// budget; docs/BENCHMARKS.md, "Fibre ends in the containment energy" and the s10a section.)
   double containment_margin = 0.15;
-  /// With the containment energy: the freed fibre ends are in it too, so that the clamp at the end
-  /// of the attempt (each end pulled back within end_area_margin of its area, and onto the surface
-  /// when outside) has little to move and folds nothing: each end pays the containment penalty at
-  /// containment_end_margin local spacings deep, and, in place of its area pin of fixed weight, a
-  /// ball round its nearest area point (renewed each round) that pulls beyond 0.8 of
-  /// end_area_margin with end_anchor_weight / h^2 times the containment's scale (raised 4x a stage
-  /// while an end is beyond end_area_margin or a point outside) (true); or the ends keep their
-  /// fixed-weight area pins (false). Only with attachment areas (default false: in every
-  /// combination measured it folded more cells of the LHDL psoas and the opendihu left biceps
-  /// than without it, e.g. 36 and 69 instead of 20 and 43 with containment_patient, 76 and 92
-  /// instead of 3 and 4 with containment_ring too; it took the biceps tracer from 24 to 0
-  /// (docs/BENCHMARKS.md, "Fibre ends in the containment energy")).
-  bool containment_ends = false;
-  /// With containment_ends: the ends' area pins of fixed weight are replaced by the ball described
-  /// there, its weight raised with the containment's scale (true), or they stay and the ends are
-  /// only in the signed-distance part (false) (default true; false measured worse still: 73 and
-  /// 100 folded cells with containment_ring and containment_patient).
-  bool containment_end_ball = true;
-  /// L-BFGS iterations of an attempt with the containment energy (the budget of `iterations` for
-  /// the others), >= 0 (default 8000; with the defaults 16000 and 32000 left the psoas at 33
-  /// folded cells instead of 2 and the left biceps at 36 instead of 14; with containment_ring and
-  /// containment_patient 16000 folded 18 cells of the biceps instead of 4).
-  int containment_iterations = 8000;
-  /// Depth the containment energy pushes a freed fibre end to, in local spacings, [0, 1)
-  /// (default 0.05: just inside, so that an end the penalty holds does not hover on the surface,
-  /// where the stages would count it outside).
-  double containment_end_margin = 0.05;
-  /// With the containment energy: the freed surface ring is in it too, held 0.05 local spacings
-  /// deep (under its 0.1-deep plane pins' planes where the surface is flat), so that the pins at the
-  /// end of the attempt do not have to move the ring points the planes leave outside where the
-  /// surface curves (true), or the ring is held by its plane pins only (false) (default false: with
-  /// containment_patient it left 3 cells of the psoas folded (coverage p95 2.03) and 4 of the left
-  /// biceps, against 2 (1.70) and 14 without both).
-  bool containment_ring = false;
-  /// The containment energy's scale is raised only after a stage that did not fold fewer
-  /// tetrahedra than the stage before (UntangleContainment::patient: soft while the cells unfold)
-  /// (true), or after every stage that leaves a point outside (false) (default false: alone it
-  /// left 20 cells of the psoas folded (coverage p95 2.33) and 43 of the left biceps).
-  bool containment_patient = false;
   /// When the free-ring attempts leave folds, they run once more with the containment energy
   /// switched (on when containment_energy is false, off when it is true), from the settled lattice;
   /// the result with the fewest folded cells after its pins stays (the earlier on a tie), so that
