@@ -224,38 +224,24 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         minus_carry[c] = minus[c];
         own[c] = _mm256_add_pd(own[c], back_up);
       }
-    } else if constexpr (Kind != 0) {
-      // Model-6, a vector of a full row: the loop below without its checks (every direction
-      // valid and pushed, every lane's target in the row), the same operations in the same order.
-#pragma GCC unroll 3
-      for (int d = 0; d < Directions; ++d) {
-        const __m256d k = Kind == 2 ? _mm256_loadu_pd(r.k[d] + i) : _mm256_set1_pd(r.ku[d]);
-        __m256d l[3];
-        const __m256d w = spring_weight<false>(kFull, x, i + r.offset[d], s, k, l);
-        if (d == r.along_x) {
-          for (int c = 0; c < 3; ++c) {
-            along[c] = _mm256_mul_pd(w, l[c]);
-            own[c] = _mm256_add_pd(own[c], along[c]);
-          }
-        } else {
-          for (int c = 0; c < 3; ++c) own[c] = _mm256_fmadd_pd(w, l[c], own[c]);
-          for (int c = 0; c < 3; ++c) {
-            double* target = r.push[d][c] + i;
-            const __m256d before = d == kModel6FirstPush ? _mm256_setzero_pd() : _mm256_loadu_pd(target);
-            _mm256_storeu_pd(target, _mm256_fnmadd_pd(w, l[c], before));
-          }
-        }
-      }
     } else {
+      // Model-6. A vector of a full row (Kind 1 and 2: every direction valid and pushed, every
+      // lane's target in the row, row_mask full) skips the checks: the same operations in the
+      // same order.
 #pragma GCC unroll 13
       for (int d = 0; d < Directions; ++d) {
-        if (!r.valid[d]) continue;
         unsigned m = row_mask;  // lanes whose target exists: i + dx in [0, nx)
-        if (r.dx[d] > 0 && left <= kLanes) m &= row_mask >> 1;
-        if (r.dx[d] < 0 && i == 0) m &= 0xEu;
-        const __m256d k = r.k[d] ? load4(m, r.k[d] + i) : _mm256_set1_pd(r.ku[d]);
+        if constexpr (Kind == 0) {
+          if (!r.valid[d]) continue;
+          if (r.dx[d] > 0 && left <= kLanes) m &= row_mask >> 1;
+          if (r.dx[d] < 0 && i == 0) m &= 0xEu;
+        }
+        const __m256d k = Kind == 2   ? _mm256_loadu_pd(r.k[d] + i)
+                          : Kind == 1 ? _mm256_set1_pd(r.ku[d])
+                          : r.k[d]    ? load4(m, r.k[d] + i)
+                                      : _mm256_set1_pd(r.ku[d]);
         __m256d l[3];
-        const __m256d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
+        const __m256d w = spring_weight<Kind == 0>(m, x, i + r.offset[d], s, k, l);
         if (d == r.along_x) {
           for (int c = 0; c < 3; ++c) {
             along[c] = _mm256_mul_pd(w, l[c]);
@@ -263,9 +249,9 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
           }
         } else {
           for (int c = 0; c < 3; ++c) own[c] = _mm256_fmadd_pd(w, l[c], own[c]);
-          if (r.push[d][0]) {
+          if (Kind != 0 || r.push[d][0]) {
             for (int c = 0; c < 3; ++c) {
-              double* target = r.push[d][c] + i + r.dx[d];
+              double* target = r.push[d][c] + i + (Kind == 0 ? r.dx[d] : 0);
               const __m256d before = d == kModel6FirstPush ? _mm256_setzero_pd() : load4(m, target);
               store4(m, target, _mm256_fnmadd_pd(w, l[c], before));
             }
