@@ -73,7 +73,6 @@ class Energy {
   Energy(std::vector<Vec3>& positions, const std::vector<char>& fixed, const std::vector<UntangleTet>& tets,
          double lambda, const std::vector<UntangleAnchor>& anchors, const UntangleContainment& containment)
       : positions_(positions),
-        tets_(tets),
         anchors_(anchors),
         containment_(containment),
         lambda_(lambda),
@@ -99,7 +98,7 @@ class Energy {
     eps_floor_.resize(n);
     std::vector<int> count(free_.size() + 1, 0);
     for (std::size_t a = 0; a < n; ++a) {
-      const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
+      const UntangleTet& tet = tets[static_cast<std::size_t>(active_[a])];
       corner_points_[a] = tet.v;
       for (int v = 0; v < 4; ++v) {
         corner_slots[a][static_cast<std::size_t>(v)] = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
@@ -180,27 +179,27 @@ class Energy {
                                       terms_.data() + begin, g ? gradient : nullptr);
         }
       }
-      Eigen::Matrix3d js[kBlock];
+      Eigen::Matrix3d js[kBlock], references[kBlock];
       double dets[kBlock], epss[kBlock], cs[kBlock], c23s[kBlock];
       for (std::size_t b0 = begin; b0 < end; b0 += kBlock) {
         const std::size_t m = std::min(kBlock, end - b0);
         for (std::size_t i = 0; i < m; ++i) {
-          const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[b0 + i])];
-          js[i] = edge_matrix(positions_, tet.v) * tet.reference_inverse;
+          const std::size_t a = b0 + i;
+          for (std::size_t k = 0; k < 9; ++k) references[i].data()[k] = reference_[k][a];
+          js[i] = edge_matrix(positions_, corner_points_[a]) * references[i];
           dets[i] = js[i].determinant();
-          epss[i] = std::max(eps, tet.eps_floor);
+          epss[i] = std::max(eps, eps_floor_[a]);
           cs[i] = chi(dets[i], epss[i]);
         }
         for (std::size_t i = 0; i < m; ++i) c23s[i] = two_thirds_power(cs[i]);
         for (std::size_t i = 0; i < m; ++i) {
           const std::size_t a = b0 + i;
-          const UntangleTet& tet = tets_[static_cast<std::size_t>(active_[a])];
           const Eigen::Matrix3d& j = js[i];
           const double det = dets[i], eps_t = epss[i], c = cs[i], c23 = c23s[i];
           const double frob = j.squaredNorm();
           const double shape = frob / c23;
           const double volume = (det * det + 1.0) / c;
-          terms_[a] = tet.weight * ((1.0 - lambda_) * shape + lambda_ * volume);
+          terms_[a] = weight_[a] * ((1.0 - lambda_) * shape + lambda_ * volume);
           if (!g) continue;
           const double dc = chi_derivative(det, eps_t);
           const Eigen::Matrix3d cof = cofactor(j);
@@ -208,7 +207,7 @@ class Energy {
           // d volume / dJ = (2 det / c - (det^2 + 1) dc / c^2) cof
           const Eigen::Matrix3d dj = (1.0 - lambda_) * (2.0 / c23 * j - (2.0 / 3.0) * shape / c * dc * cof) +
                                      lambda_ * (2.0 * det / c - (det * det + 1.0) * dc / (c * c)) * cof;
-          const Eigen::Matrix3d gradient = tet.weight * dj * tet.reference_inverse.transpose();
+          const Eigen::Matrix3d gradient = weight_[a] * dj * references[i].transpose();
           for (std::size_t k = 0; k < 9; ++k) gradients_[k][a] = gradient.data()[k];
         }
       }
@@ -285,7 +284,6 @@ class Energy {
 
  private:
   std::vector<Vec3>& positions_;
-  const std::vector<UntangleTet>& tets_;
   const std::vector<UntangleAnchor>& anchors_;
   const UntangleContainment& containment_;
   std::vector<UntangleContainment::Point> contained_;  // the containment's free points
