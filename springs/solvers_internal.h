@@ -65,6 +65,10 @@ std::unique_ptr<SpringSolver> make_coarse_started_momentum(const SpringSystem& s
 /// Verlet solvers; with `momentum` the same kernels run the momentum static solver.
 std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
                                                   const SettleOptions& options, bool momentum = false);
+/// Whether general solvers built from now on may evaluate each spring once when the system fits
+/// one block of points (default true; tests switch it off to check the per-point gather against
+/// it bit for bit).
+void set_general_spring_once(bool enabled);
 /// Returns null when `system` is not exactly the lattice `shape` with stiffness 1 / rest.
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
                                                      const SettleOptions& options,

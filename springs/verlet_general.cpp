@@ -1,7 +1,8 @@
 // Verlet (Zeleny 2011, formula 3.8) on the general data path: any spring list, stored as
 // compressed rows (each point lists its springs), forces gathered per point into a separate
 // array, then one integration pass. Both passes are TBB-parallel over fixed blocks of points,
-// so results do not depend on the thread count.
+// so results do not depend on the thread count. A system of one block (up to kBlock points, as
+// a decomposition's lattice) evaluates each spring once instead, with the gather's bits.
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"
@@ -9,6 +10,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace fascicle::springs::detail {
@@ -40,6 +43,7 @@ SpringRows spring_rows(const SpringSystem& system) {
 namespace {
 
 constexpr int kBlock = 4096;  // points per parallel block (fixed: deterministic reductions)
+std::atomic<bool> spring_once_enabled{true};
 
 class GeneralVerlet final : public SpringSolver {
  public:
@@ -60,6 +64,7 @@ class GeneralVerlet final : public SpringSolver {
     prev_ = x_;
     force_.assign(x_.size(), 0.0);
     blocks_ = (n_ + kBlock - 1) / kBlock;
+    if (blocks_ == 1 && spring_once_enabled) springs_ = system.springs;  // compute_forces_once
     partial_.assign(std::max(blocks_, 1), 0.0);
     scale_ = residual_force_scale(system);
     floor_ = energy_floor(system);
@@ -152,6 +157,7 @@ class GeneralVerlet final : public SpringSolver {
   // Gathers spring forces at `x` into force_; returns the largest squared force at a free point
   // (NaN/Inf when any force is not finite).
   double compute_forces(const std::vector<double>& x) {
+    if (!springs_.empty()) return compute_forces_once(x);
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
       for (int blk = range.begin(); blk != range.end(); ++blk) {
         double largest = 0.0;
@@ -179,6 +185,33 @@ class GeneralVerlet final : public SpringSolver {
     return largest;
   }
 
+  // One block (no threads): each spring evaluated once, in the system's order, its force added
+  // to its first end and subtracted from its second. A point's rows list its springs in that same
+  // order, and the second end's gather would compute the negated difference, the same length and
+  // the same factor, so every force is the gather's to the bit at half the square roots and
+  // divisions.
+  double compute_forces_once(const std::vector<double>& x) {
+    std::fill(force_.begin(), force_.end(), 0.0);
+    for (const Spring& s : springs_) {
+      const std::size_t a = 3 * static_cast<std::size_t>(s.a), b = 3 * static_cast<std::size_t>(s.b);
+      const double l[3] = {x[b] - x[a], x[b + 1] - x[a + 1], x[b + 2] - x[a + 2]};
+      const double len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+      if (len == 0.0) continue;
+      const double w = s.stiffness * (len - s.rest) / len;
+      for (int c = 0; c < 3; ++c) {
+        force_[a + c] += w * l[c];
+        force_[b + c] -= w * l[c];
+      }
+    }
+    double largest = 0.0;
+    for (int i = 0; i < n_; ++i) {
+      const double* f = &force_[3 * static_cast<std::size_t>(i)];
+      const double f2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+      if (!fixed_[i] && (f2 > largest || std::isnan(f2))) largest = f2;  // NaN sticks
+    }
+    return largest;
+  }
+
   void check_energy() {
     const double e = energy();
     if (!std::isfinite(e) || e > options_.energy_growth_bound * initial_energy_)
@@ -191,6 +224,7 @@ class GeneralVerlet final : public SpringSolver {
   std::vector<char> fixed_;
   std::vector<int> row_, neighbour_;
   std::vector<double> stiffness_, rest_;
+  std::vector<Spring> springs_;  // only for a one-block system: compute_forces_once
   std::vector<double> x_, prev_, force_, partial_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
   bool momentum_ = false;
@@ -199,6 +233,8 @@ class GeneralVerlet final : public SpringSolver {
 };
 
 }  // namespace
+
+void set_general_spring_once(bool enabled) { spring_once_enabled = enabled; }
 
 std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
                                                   const SettleOptions& options, bool momentum) {
