@@ -75,13 +75,6 @@ void stretch_rest_lengths(springs::SpringSystem& system, const std::vector<Vec3>
   report["shortest_rest"] = shortest;
 }
 
-std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
-  std::vector<int> out;
-  for (std::size_t q = 0; q < system.positions.size(); ++q)
-    if (!system.fixed[q] && query.side(system.positions[q]) != Side::inside) out.push_back(static_cast<int>(q));
-  return out;
-}
-
 // Whether the inner points of layer k, seen along `axis`, form an unfolded grid: every quad
 // (diagonals crossed) turns the same way as the whole layer.
 bool layer_unfolded(const springs::SpringSystem& system, const springs::Lattice& lattice, int k, const Vec3& axis) {

@@ -1,14 +1,13 @@
 // The fibre quality check. Two spatial structures keep it fast without giving up exactness:
-// - InsideGrid classifies a uniform grid over the muscle's box once: cells whose closed box
-//   meets no triangle's (padded) box form regions that do not touch the surface, so each
-//   face-connected region has one side, found with one exact test at a cell centre. Points in
-//   such cells need no further test; only points in cells near the surface go to the exact test
-//   (CGAL Side_of_triangle_mesh through SurfaceQuery).
+// - the inside grid of the muscle's SurfaceQuery (morph/inside_grid.h): points away from the
+//   surface are classified by their cell, only points near it go to the exact test (CGAL
+//   Side_of_triangle_mesh); its cells also seed the coverage samples.
 // - SegmentTree, a bounding-volume hierarchy over the fibre segments, answers nearest-segment
 //   queries by branch and bound (exact distances, no brute force).
 #include "fibres/fibre_check.h"
 
 #include "fibres/fibre_grid.h"
+#include "morph/inside_grid.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 
@@ -28,136 +27,6 @@ namespace fascicle {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-/// Integer cell coordinates of a uniform grid over a box.
-struct UniformGrid {
-  Vec3 origin = Vec3::Zero();
-  double h = 1.0;
-  std::array<int, 3> n{1, 1, 1};
-
-  /// A grid over `box` (padded by `pad` on every side) with about `target` cubic cells.
-  static UniformGrid over(const BoundingBox& box, double pad, double target) {
-    UniformGrid g;
-    g.origin = box.min - Vec3::Constant(pad);
-    const Vec3 extent = (box.max - box.min) + Vec3::Constant(2 * pad);
-    g.h = std::cbrt(extent.prod() / std::max(1.0, target));
-    // A flat box (zero extent on an axis) gives h = 0: fall back to the largest extent.
-    if (!(g.h > 0.0) || !std::isfinite(g.h)) g.h = std::max(extent.maxCoeff() / std::cbrt(target), 1e-300);
-    // At most 4096 cells per axis, and still covering the box (a needle-thin box gets
-    // fewer, longer cells rather than a grid that ends inside it).
-    g.h = std::max(g.h, extent.maxCoeff() / 4096.0);
-    for (int a = 0; a < 3; ++a)
-      g.n[a] = std::max(1, std::min(4096, static_cast<int>(std::ceil(extent[a] / g.h))));
-    return g;
-  }
-  long cells() const { return static_cast<long>(n[0]) * n[1] * n[2]; }
-  int coordinate(double x, int axis) const {
-    const double c = std::floor((x - origin[axis]) / h);
-    return static_cast<int>(std::clamp(c, -1.0, static_cast<double>(n[axis])));
-  }
-  long index(int i, int j, int k) const { return i + static_cast<long>(n[0]) * (j + static_cast<long>(n[1]) * k); }
-  Vec3 centre(int i, int j, int k) const { return origin + h * Vec3(i + 0.5, j + 0.5, k + 0.5); }
-};
-
-/// Side of points with respect to the muscle: grid classification, exact test near the surface.
-class InsideGrid {
- public:
-  InsideGrid(const TriangleMesh& mesh, const SurfaceQuery& query) : query_(query) {
-    const BoundingBox box = bounding_box(mesh.positions);
-    const double diagonal = box.diagonal();
-    // About 64^3 cells: classification costs a few milliseconds; finer grids cost more to
-    // classify than they save in exact tests (measured on 8k- and 54k-triangle muscles).
-    grid_ = UniformGrid::over(box, 0.01 * diagonal, 64.0 * 64.0 * 64.0);
-    bounds_ = box;
-    const double eps = 1e-9 * diagonal;
-    state_.assign(static_cast<std::size_t>(grid_.cells()), kFree);
-    for (const Triangle& t : mesh.triangles) {
-      const Vec3& p0 = mesh.positions[static_cast<std::size_t>(t[0])];
-      const Vec3& p1 = mesh.positions[static_cast<std::size_t>(t[1])];
-      const Vec3& p2 = mesh.positions[static_cast<std::size_t>(t[2])];
-      const Vec3 tmin = p0.cwiseMin(p1).cwiseMin(p2), tmax = p0.cwiseMax(p1).cwiseMax(p2);
-      std::array<int, 3> lo{}, hi{};
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = std::max(0, grid_.coordinate(tmin[a] - eps, a));
-        hi[a] = std::min(grid_.n[a] - 1, grid_.coordinate(tmax[a] + eps, a));
-      }
-      for (int k = lo[2]; k <= hi[2]; ++k)
-        for (int j = lo[1]; j <= hi[1]; ++j)
-          for (int i = lo[0]; i <= hi[0]; ++i) state_[static_cast<std::size_t>(grid_.index(i, j, k))] = kNear;
-    }
-    // Flood fill the free regions (6-neighbourhood); one exact test per region.
-    std::vector<long> stack;
-    for (int k = 0; k < grid_.n[2]; ++k)
-      for (int j = 0; j < grid_.n[1]; ++j)
-        for (int i = 0; i < grid_.n[0]; ++i) {
-          const long start = grid_.index(i, j, k);
-          if (state_[static_cast<std::size_t>(start)] != kFree) continue;
-          const Side side = query_.side(grid_.centre(i, j, k));
-          const char mark = side == Side::inside ? kInside : kOutside;
-          state_[static_cast<std::size_t>(start)] = mark;
-          stack.push_back(start);
-          while (!stack.empty()) {
-            const long c = stack.back();
-            stack.pop_back();
-            const int ci = static_cast<int>(c % grid_.n[0]);
-            const int cj = static_cast<int>((c / grid_.n[0]) % grid_.n[1]);
-            const int ck = static_cast<int>(c / (static_cast<long>(grid_.n[0]) * grid_.n[1]));
-            const int nb[6][3] = {{ci - 1, cj, ck}, {ci + 1, cj, ck}, {ci, cj - 1, ck},
-                                  {ci, cj + 1, ck}, {ci, cj, ck - 1}, {ci, cj, ck + 1}};
-            for (const auto& q : nb) {
-              if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= grid_.n[0] || q[1] >= grid_.n[1] || q[2] >= grid_.n[2])
-                continue;
-              const long qi = grid_.index(q[0], q[1], q[2]);
-              if (state_[static_cast<std::size_t>(qi)] != kFree) continue;
-              state_[static_cast<std::size_t>(qi)] = mark;
-              stack.push_back(qi);
-            }
-          }
-          ++regions_;
-        }
-  }
-
-  /// Exact side of p (thread-safe once constructed).
-  Side side(const Vec3& p) const {
-    for (int a = 0; a < 3; ++a)
-      if (p[a] < bounds_.min[a] || p[a] > bounds_.max[a]) return Side::outside;
-    std::array<int, 3> c{};
-    for (int a = 0; a < 3; ++a) {
-      c[a] = grid_.coordinate(p[a], a);
-      if (c[a] < 0 || c[a] >= grid_.n[a]) return query_.side(p);  // cannot happen inside bounds_
-    }
-    const char s = state_[static_cast<std::size_t>(grid_.index(c[0], c[1], c[2]))];
-    if (s == kInside) return Side::inside;
-    if (s == kOutside) return Side::outside;
-    return query_.side(p);
-  }
-
-  const BoundingBox& bounds() const { return bounds_; }
-
-  /// Cells that may hold points inside the muscle (classified inside, or near the surface);
-  /// their union contains the muscle.
-  std::vector<long> candidate_cells() const {
-    std::vector<long> cells;
-    for (long c = 0; c < grid_.cells(); ++c)
-      if (state_[static_cast<std::size_t>(c)] == kInside || state_[static_cast<std::size_t>(c)] == kNear)
-        cells.push_back(c);
-    return cells;
-  }
-  /// Lowest corner of a cell, and the cell size.
-  Vec3 cell_corner(long c) const {
-    const long i = c % grid_.n[0], j = (c / grid_.n[0]) % grid_.n[1], k = c / (static_cast<long>(grid_.n[0]) * grid_.n[1]);
-    return grid_.origin + grid_.h * Vec3(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
-  }
-  double cell_size() const { return grid_.h; }
-
- private:
-  static constexpr char kFree = 0, kNear = 1, kInside = 2, kOutside = 3;
-  const SurfaceQuery& query_;
-  UniformGrid grid_;
-  BoundingBox bounds_;
-  std::vector<char> state_;
-  int regions_ = 0;
-};
 
 /// Squared distance from p to the segment [a, b].
 double segment_distance2(const Vec3& p, const Vec3& a, const Vec3& b) {
@@ -441,7 +310,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   report.thresholds = options;
   report.fibres = static_cast<long>(fibres.lines.size());
   const double diagonal = bounding_box(muscle.positions).diagonal();
-  const InsideGrid inside(muscle, query);
+  const InsideGrid& inside = query.inside_grid();  // the grid query.side() consults
 
   // ---- inside test of every fibre point ----
   std::vector<std::size_t> first_point(fibres.lines.size() + 1, 0);
@@ -453,7 +322,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   tbb::parallel_for(std::size_t(0), fibres.lines.size(), [&](std::size_t f) {
     const auto& line = fibres.lines[f];
     for (std::size_t k = 0; k < line.size(); ++k) {
-      const Side side = inside.side(line[k]);
+      const Side side = query.side(line[k]);
       bool ok = side == Side::inside;
       if (!ok && (k == 0 || k + 1 == line.size())) ok = query.closest_point(line[k]).distance <= end_tolerance;
       point_ok[first_point[f] + k] = ok ? 1 : 0;
@@ -544,7 +413,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       }
       attempts += batch;
       std::vector<char> accepted(batch, 0);
-      tbb::parallel_for(std::size_t(0), batch, [&](std::size_t i) { accepted[i] = inside.side(candidates[i]) == Side::inside; });
+      tbb::parallel_for(std::size_t(0), batch, [&](std::size_t i) { accepted[i] = query.side(candidates[i]) == Side::inside; });
       for (std::size_t i = 0; i < batch && samples.size() < wanted; ++i)
         if (accepted[i]) samples.push_back(candidates[i]);
     }

@@ -180,14 +180,21 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
   return n;
 }
 
-namespace {
-
 std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
+  const std::size_t n = system.positions.size();
+  std::vector<char> out_flag(n, 0);
+  if (n > 0) query.side(system.positions[0]);  // builds the query's inside test before the threads
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t q = range.begin(); q != range.end(); ++q)
+      out_flag[q] = !system.fixed[q] && query.side(system.positions[q]) != Side::inside;
+  });
   std::vector<int> out;
-  for (std::size_t q = 0; q < system.positions.size(); ++q)
-    if (!system.fixed[q] && query.side(system.positions[q]) != Side::inside) out.push_back(static_cast<int>(q));
+  for (std::size_t q = 0; q < n; ++q)
+    if (out_flag[q]) out.push_back(static_cast<int>(q));
   return out;
 }
+
+namespace {
 
 // The point of `area` nearest to p (p itself when the area is empty).
 Vec3 nearest_area_point(const std::vector<Vec3>& area, const Vec3& p) {

@@ -160,6 +160,10 @@ struct LatticeUntangleReport {
   nlohmann::json to_json() const;
 };
 
+/// The free points of `system` that are not strictly inside the surface of `query` (exact test),
+/// in index order.
+std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query);
+
 /// Mean length of the springs at each point of `system` (its local lattice spacing).
 std::vector<double> lattice_local_spacing(const springs::SpringSystem& system);
 

@@ -5,6 +5,7 @@
 #include "morph/surface_query.h"
 
 #include "geometry/errors.h"
+#include "morph/inside_grid.h"
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -162,6 +163,28 @@ struct SurfaceQuery::Impl {
   RayTree rays;
   std::once_flag inside_once;
   std::optional<Inside> inside;
+  std::optional<InsideGrid> grid;
+
+  // Builds the exact test and the grid over it, once.
+  void build_inside() {
+    std::call_once(inside_once, [this] {
+      std::vector<Mesh::Vertex_index> vertices;
+      vertices.reserve(mesh.positions.size());
+      for (const Vec3& v : mesh.positions) vertices.push_back(surface.add_vertex(to_point(v)));
+      for (const Triangle& t : mesh.triangles)
+        if (surface.add_face(vertices[t[0]], vertices[t[1]], vertices[t[2]]) == Mesh::null_face())
+          throw TopologyError("inside test: the mesh is not an oriented 2-manifold");
+      inside.emplace(surface);
+      grid.emplace(mesh, [this](const Vec3& p) { return exact_side(p) == Side::inside; });
+    });
+  }
+  Side exact_side(const Vec3& p) const {
+    switch ((*inside)(to_point(p))) {
+      case CGAL::ON_BOUNDED_SIDE: return Side::inside;
+      case CGAL::ON_BOUNDARY: return Side::boundary;
+      default: return Side::outside;
+    }
+  }
 };
 
 SurfaceQuery::SurfaceQuery(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
@@ -250,21 +273,22 @@ std::vector<SurfacePoint> SurfaceQuery::closest_points(const std::vector<Vec3>& 
 
 Side SurfaceQuery::side(const Vec3& p) const {
   // Built on first use: most callers only need closest points.
-  std::call_once(impl_->inside_once, [this] {
-    Mesh& m = impl_->surface;
-    std::vector<Mesh::Vertex_index> vertices;
-    vertices.reserve(impl_->mesh.positions.size());
-    for (const Vec3& v : impl_->mesh.positions) vertices.push_back(m.add_vertex(to_point(v)));
-    for (const Triangle& t : impl_->mesh.triangles)
-      if (m.add_face(vertices[t[0]], vertices[t[1]], vertices[t[2]]) == Mesh::null_face())
-        throw TopologyError("inside test: the mesh is not an oriented 2-manifold");
-    impl_->inside.emplace(m);
-  });
-  switch ((*impl_->inside)(to_point(p))) {
-    case CGAL::ON_BOUNDED_SIDE: return Side::inside;
-    case CGAL::ON_BOUNDARY: return Side::boundary;
-    default: return Side::outside;
+  impl_->build_inside();
+  switch (impl_->grid->classify(p)) {
+    case InsideGrid::Known::inside: return Side::inside;
+    case InsideGrid::Known::outside: return Side::outside;
+    default: return impl_->exact_side(p);
   }
+}
+
+Side SurfaceQuery::exact_side(const Vec3& p) const {
+  impl_->build_inside();
+  return impl_->exact_side(p);
+}
+
+const InsideGrid& SurfaceQuery::inside_grid() const {
+  impl_->build_inside();
+  return *impl_->grid;
 }
 
 bool SurfaceQuery::first_hit(const Vec3& p, const Vec3& d, double reach, Vec3& hit) const {

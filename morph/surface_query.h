@@ -10,6 +10,8 @@
 
 namespace fascicle {
 
+class InsideGrid;
+
 /// A point on a triangle mesh: face index, barycentric coordinates (non-negative, sum 1) with
 /// respect to the face's corners in order, the position they give, and (for closest-point
 /// queries) the distance from the query, in the mesh's units.
@@ -26,8 +28,8 @@ enum class Side { inside, boundary, outside };
 /// Point queries on one triangle mesh. Build once (an AABB tree over the triangles, a bounding
 /// volume hierarchy for rays, and for the inside test CGAL::Side_of_triangle_mesh, which counts
 /// ray crossings with exact predicates), then query many times. closest_point and first_hit may
-/// be called from several threads; side() builds its tree on first use and is not meant for
-/// concurrent first calls.
+/// be called from several threads, and so may side(), which builds its tree and grid on first
+/// use (once, whichever thread calls first).
 class SurfaceQuery {
  public:
   /// Builds the trees. `mesh` must outlive nothing: its data are copied. Throws TopologyError
@@ -50,8 +52,15 @@ class SurfaceQuery {
   std::vector<SurfacePoint> closest_points(const std::vector<Vec3>& points) const;
 
   /// Exact side of `p` with respect to the closed surface (precondition: the mesh is closed;
-  /// on an open mesh the answer is meaningless).
+  /// on an open mesh the answer is meaningless). The inside grid (inside_grid()) answers for
+  /// points away from the surface; the others get exact_side().
   Side side(const Vec3& p) const;
+
+  /// The exact test alone, without the grid (the same answer as side()).
+  Side exact_side(const Vec3& p) const;
+
+  /// The classified grid side() consults (built with the exact test on first use of either).
+  const InsideGrid& inside_grid() const;
 
   /// First hit of the ray p + t d (t > 0; d need not be unit) with the surface, among the
   /// triangles whose box meets the box of the segment t in [0, reach] (so only hits with

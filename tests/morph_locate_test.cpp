@@ -1,4 +1,6 @@
 // Point location on a sphere map: vertices, edges, face interiors, round trips, inside tests.
+#include "geometry/mesh_stats.h"
+#include "morph/inside_grid.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
 #include "morph/surface_query.h"
@@ -170,6 +172,42 @@ TEST_CASE("first_hit finds the hit of a test of every triangle, to the bit", "[m
   }
   CHECK(hits > 300);
   CHECK(misses > 20);
+}
+
+TEST_CASE("side() answers as the exact test, the grid answering points away from the surface", "[morph][locate]") {
+  // Points inside, outside, far away, next to the surface and on it (vertices, edge midpoints),
+  // on two shapes: a bent capsule (one inside region) and a cube.
+  for (const TriangleMesh& mesh : {test::bent_capsule(1.0, 15.0, 16, 120.0), test::subdivided_cube(6)}) {
+    const SurfaceQuery query(mesh);
+    const BoundingBox box = bounding_box(mesh.positions);
+    std::mt19937 random(11);
+    std::uniform_real_distribution<double> unit(-0.2, 1.2);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 4000; ++i)
+      points.push_back(box.min + (box.max - box.min).cwiseProduct(Vec3(unit(random), unit(random), unit(random))));
+    for (const Vec3& v : mesh.positions) points.push_back(v);
+    for (const Triangle& t : mesh.triangles) {
+      const Vec3 mid = 0.5 * (mesh.positions[t[0]] + mesh.positions[t[1]]);
+      const Vec3 centre = (mesh.positions[t[0]] + mesh.positions[t[1]] + mesh.positions[t[2]]) / 3.0;
+      points.push_back(mid);
+      points.push_back(centre + 1e-12 * (centre - box.min));
+    }
+    long by_grid = 0, inside = 0, outside = 0, boundary = 0;
+    const InsideGrid& grid = query.inside_grid();
+    for (const Vec3& p : points) {
+      const Side exact = query.exact_side(p);
+      CHECK(query.side(p) == exact);
+      by_grid += grid.classify(p) != InsideGrid::Known::unknown;
+      inside += exact == Side::inside;
+      outside += exact == Side::outside;
+      boundary += exact == Side::boundary;
+    }
+    CHECK(grid.regions() >= 2);   // at least the outside and the inside
+    CHECK(inside > 500);
+    CHECK(outside > 500);
+    CHECK(boundary >= static_cast<long>(mesh.positions.size()));
+    CHECK(by_grid > 2000);        // most random points are answered by their cell
+  }
 }
 
 TEST_CASE("closest_points gives closest_point's answer for many points at once", "[morph][locate]") {
