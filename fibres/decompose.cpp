@@ -8,9 +8,11 @@
 #include "morph/surface_query.h"
 
 #include <Eigen/SVD>
+#include <tbb/parallel_invoke.h>
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <optional>
 #include <unordered_map>
 #include <tuple>
 #include <cmath>
@@ -436,10 +438,18 @@ Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, con
 
 namespace {
 
+// The muscle's sphere map and its point locator, made once for all attempts (no retry changes
+// the sphere options).
+struct MuscleSphere {
+  SphereMap map;
+  std::optional<SphereLocator> locator;  // empty when the map is not a bijection
+  double seconds = 0.0;
+};
+
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-// `query` is built on `muscle` once for all attempts.
-Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const Landmarks& landmarks,
-                                const DecomposeOptions& options) {
+// `query` and `sphere` are built on `muscle` once for all attempts.
+Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
+                                const Landmarks& landmarks, const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -466,18 +476,16 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                                        {"max_distance", areas.insertion.max_distance}}}};
   if (!strip.is_null()) report.attachments["strip"] = strip;
 
-  // Sphere map of the muscle.
-  auto stage = Clock::now();
-  const SphereMap map = map_to_sphere(muscle, options.sphere);
+  // Sphere map of the muscle (made before the attempts).
+  const SphereMap& map = sphere.map;
   report.sphere = map.report.to_json();
-  if (!map.report.quality.bijective())
+  if (!sphere.locator)
     throw SolverError("sphere map: not a bijection (" + map.report.failure + "); try --sphere-method " +
                       std::string(map.report.method == "tutte" ? "relax" : "tutte"));
-  const SphereLocator locator(map.positions, muscle.triangles);
-  report.sphere_seconds = since(stage);
+  const SphereLocator& locator = *sphere.locator;
 
   // Template lattice with a ring of surface lines, placed on the muscle.
-  stage = Clock::now();
+  auto stage = Clock::now();
   const auto split = springs::near_square_split(options.fibres);
   springs::LatticeOptions lattice_options;
   lattice_options.kind = options.kind;
@@ -774,9 +782,28 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
                                  const DecomposeOptions& options) {
   options.validate();
   const auto start = Clock::now();
-  const SurfaceQuery query(muscle);
-  const double query_seconds = since(start);
-  Decomposition best = decompose_attempt(muscle, query, landmarks, options);
+  // The surface's query trees (with the inside grid) and the muscle's sphere map side by side:
+  // each is mostly one thread's work.
+  std::optional<SurfaceQuery> built_query;
+  MuscleSphere sphere;
+  double query_seconds = 0.0;
+  tbb::parallel_invoke(
+      [&] {
+        const auto t = Clock::now();
+        built_query.emplace(muscle);
+        built_query->inside_grid();
+        query_seconds = since(t);
+      },
+      [&] {
+        const auto t = Clock::now();
+        sphere.map = map_to_sphere(muscle, options.sphere);
+        if (sphere.map.report.quality.bijective()) sphere.locator.emplace(sphere.map.positions, muscle.triangles);
+        sphere.seconds = since(t);
+      });
+  const SurfaceQuery& query = *built_query;
+  const double setup_seconds = since(start);
+  Decomposition best = decompose_attempt(muscle, query, sphere, landmarks, options);
+  best.report.sphere_seconds = sphere.seconds;
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
@@ -802,7 +829,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       continue;
     }
     try {
-      Decomposition d = decompose_attempt(muscle, query, landmarks, retry);
+      Decomposition d = decompose_attempt(muscle, query, sphere, landmarks, retry);
       if (step.starts_sequence) {
         first_inverted = d.report.quality.inverted_cells;
         first_ring_freed = ring_freed(d);
@@ -823,7 +850,8 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   best.report.attempts = std::move(attempts);
   best.report.kept_attempt = kept;
   best.report.query_seconds = query_seconds;
-  best.report.seconds = query_seconds + seconds;
+  best.report.sphere_seconds = sphere.seconds;
+  best.report.seconds = setup_seconds + seconds;
   return best;
 }
 

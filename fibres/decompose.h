@@ -163,7 +163,8 @@ struct DecomposeReport {
   int kept_attempt = 0;     ///< index into `attempts` of the result returned
   std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
   /// Seconds per stage; query_seconds: building the surface's point-location and inside-test
-  /// trees, once for all attempts; seconds: the total, every attempt included.
+  /// trees, sphere_seconds: the muscle's sphere map and its locator, each once for all attempts
+  /// and side by side (they overlap); seconds: the total wall time, every attempt included.
   double repair_seconds = 0, query_seconds = 0, sphere_seconds = 0, placement_seconds = 0, settle_seconds = 0,
          check_seconds = 0, seconds = 0;
   nlohmann::json to_json() const;
