@@ -155,18 +155,19 @@ class Energy {
     // block's tetrahedra overlap in the processor where one tetrahedron after the other would
     // wait on each. The same operations in the same order as tetrahedron by tetrahedron: the
     // result is the same to the bit.
-    // With AVX2, four tetrahedra a vector (fibres/untangle_terms.h: the same operations, the same
-    // bits), the rest of the range below.
-    const bool simd = untangle_simd_;
+    // With AVX2 or AVX-512, four or eight tetrahedra a vector (fibres/untangle_terms.h: the same
+    // operations, the same bits), the rest of the range below.
+    const int lanes = simd_lanes_;
     auto terms = [&](std::size_t begin, std::size_t end) {
-      if (simd) {
-        double p[12][4];
-        for (; begin + 4 <= end; begin += 4) {
-          for (int l = 0; l < 4; ++l) {
-            const std::array<int, 4>& corners = corner_points_[begin + static_cast<std::size_t>(l)];
+      if (lanes > 0) {
+        const std::size_t step = static_cast<std::size_t>(lanes);
+        double p[12 * 8];
+        for (; begin + step <= end; begin += step) {
+          for (std::size_t l = 0; l < step; ++l) {
+            const std::array<int, 4>& corners = corner_points_[begin + l];
             for (int v = 0; v < 4; ++v) {
               const Vec3& point = positions_[static_cast<std::size_t>(corners[static_cast<std::size_t>(v)])];
-              for (int c = 0; c < 3; ++c) p[3 * v + c][l] = point[c];
+              for (int c = 0; c < 3; ++c) p[static_cast<std::size_t>(3 * v + c) * step + l] = point[c];
             }
           }
           const double* r[9];
@@ -175,7 +176,7 @@ class Energy {
             r[k] = reference_[k].data() + begin;
             gradient[k] = g ? gradients_[k].data() + begin : nullptr;
           }
-          detail::untangle_terms_avx2(p, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
+          detail::untangle_terms_simd(lanes, p, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
                                       terms_.data() + begin, g ? gradient : nullptr);
         }
       }
@@ -288,7 +289,7 @@ class Energy {
   const UntangleContainment& containment_;
   std::vector<UntangleContainment::Point> contained_;  // the containment's free points
   double lambda_;
-  bool untangle_simd_ = detail::untangle_simd_active();  // the AVX2 terms (fibres/untangle_terms.h)
+  int simd_lanes_ = detail::untangle_simd_lanes();  // the vector terms (fibres/untangle_terms.h)
   std::vector<int> slot_, free_, active_;
   std::vector<double> terms_;  // each active tetrahedron's energy term
   // and its gradient by the edge vectors, entry k (column-major) of every tetrahedron in gradients_[k]

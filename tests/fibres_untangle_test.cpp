@@ -274,8 +274,8 @@ TEST_CASE("untangle: the energy's terms computed on several threads give the ser
   CHECK(threads == one_thread);                            // bitwise
 }
 
-TEST_CASE("untangle: the AVX2 energy terms give the scalar code's result, bit for bit", "[fibres][untangle]") {
-  // The vector path (fibres/untangle_terms.h) must make every rounding of the scalar one: the
+TEST_CASE("untangle: the AVX2 and AVX-512 energy terms give the scalar code's result, bit for bit", "[fibres][untangle]") {
+  // The vector paths (fibres/untangle_terms.h) must make every rounding of the scalar one: the
   // same positions, iterations and min det J to the bit. Reference cells from a jittered grid
   // (entries of every size in the reference inverses, not the cube's zeros and ones), weights and
   // eps floors that vary, 12^3 cells less one tetrahedron (not a multiple of the 4 lanes), and
@@ -310,19 +310,28 @@ TEST_CASE("untangle: the AVX2 energy terms give the scalar code's result, bit fo
   }
   REQUIRE(inverted(g.positions, g.tets) > 0);
   REQUIRE(g.tets.size() % 4 != 0);
-  std::vector<Vec3> scalar = g.positions, vector = g.positions;
+  std::vector<Vec3> scalar = g.positions;
   detail::set_untangle_simd(false);
   const UntangleReport a = untangle(scalar, g.fixed, g.tets);
   detail::set_untangle_simd(true);
-  REQUIRE(detail::untangle_simd_active());
-  const UntangleReport b = untangle(vector, g.fixed, g.tets);
-  INFO("scalar: " << a.to_json().dump() << "\nAVX2: " << b.to_json().dump());
   CHECK(a.iterations > 30);
-  CHECK(b.iterations == a.iterations);
-  CHECK(b.evaluations == a.evaluations);
-  CHECK(b.min_det_after == a.min_det_after);  // bitwise
-  CHECK(vector == scalar);                    // bitwise
-  CHECK(vector != g.positions);               // it moved
+  CHECK(scalar != g.positions);  // it moved
+  for (bool avx512 : {false, true}) {
+    if (avx512 && !detail::untangle_terms_avx512_supported()) {
+      WARN("this processor has no AVX-512: the 8-lane path is not run here");
+      continue;
+    }
+    detail::set_untangle_avx512(avx512);
+    REQUIRE(detail::untangle_simd_lanes() == (avx512 ? 8 : 4));
+    std::vector<Vec3> vector = g.positions;
+    const UntangleReport b = untangle(vector, g.fixed, g.tets);
+    INFO("scalar: " << a.to_json().dump() << "\n" << (avx512 ? "AVX-512: " : "AVX2: ") << b.to_json().dump());
+    CHECK(b.iterations == a.iterations);
+    CHECK(b.evaluations == a.evaluations);
+    CHECK(b.min_det_after == a.min_det_after);  // bitwise
+    CHECK(vector == scalar);                    // bitwise
+  }
+  detail::set_untangle_avx512(true);
 }
 
 TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
