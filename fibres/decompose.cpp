@@ -803,7 +803,6 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   const SurfaceQuery& query = *built_query;
   const double setup_seconds = since(start);
   Decomposition best = decompose_attempt(muscle, query, sphere, landmarks, options);
-  best.report.sphere_seconds = sphere.seconds;
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;

@@ -183,7 +183,6 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 std::vector<int> outside_free_points(const springs::SpringSystem& system, const SurfaceQuery& query) {
   const std::size_t n = system.positions.size();
   std::vector<char> out_flag(n, 0);
-  if (n > 0) query.side(system.positions[0]);  // builds the query's inside test before the threads
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t q = range.begin(); q != range.end(); ++q)
       out_flag[q] = !system.fixed[q] && query.side(system.positions[q]) != Side::inside;

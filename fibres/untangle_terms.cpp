@@ -115,6 +115,5 @@ int untangle_simd_lanes() {
   return g_untangle_avx512 && untangle_terms_avx512_supported() ? 8 : 4;
 }
 
-bool untangle_simd_active() { return untangle_simd_lanes() > 0; }
 
 }  // namespace fascicle::detail

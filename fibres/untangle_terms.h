@@ -28,6 +28,5 @@ bool untangle_terms_avx512_supported();
 /// set_untangle_avx512(false): AVX2 where AVX-512 is there too.
 void set_untangle_simd(bool enabled);
 void set_untangle_avx512(bool enabled);
-bool untangle_simd_active();
 
 }  // namespace fascicle::detail
