@@ -141,7 +141,7 @@ void run_sphere_bench(const SphereBenchArgs& args) {
     std::sort(times.begin(), times.end());
     std::sort(cpus.begin(), cpus.end());
     const double locate = times[times.size() / 2], locate_cpu = cpus[cpus.size() / 2];
-    std::printf("%-44s %9zu %9zu %9.3f %9.3f  (tree build %.3f s, TBB threads)\n",
+    std::printf("%-44s %9zu %9zu %9.3f %9.3f  (locator build %.3f s, TBB threads)\n",
                 ("locate " + std::to_string(args.points) + " points").c_str(), big.positions.size(),
                 big.triangles.size(), locate, locate_cpu, build);
     out["speed"].push_back({{"case", "locate"},
@@ -149,7 +149,7 @@ void run_sphere_bench(const SphereBenchArgs& args) {
                             {"triangles", big.triangles.size()},
                             {"median_seconds", locate},
                             {"median_cpu_seconds", locate_cpu},
-                            {"tree_build_seconds", build}});
+                            {"locator_build_seconds", build}});
   }
   if (!args.skip_corpus) {
     std::vector<fs::path> files;

@@ -15,10 +15,10 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
-#include <unordered_map>
 #include <cmath>
 #include <limits>
 #include <list>
+#include <mutex>
 #include <stdexcept>
 
 namespace fascicle {
@@ -39,11 +39,21 @@ struct SphereLocator::Impl {
   std::vector<Vec3> sphere;
   std::vector<Triangle> triangles;
   std::vector<Triangle3> chords;
-  Tree tree;
+  // Built on first use: most maps never need it (every walk ends strictly inside a face).
+  mutable Tree tree;
+  mutable std::once_flag tree_built;
   std::vector<std::array<int, 3>> across;  // face across edge (t[k], t[k+1]), -1 if none
   int grid = 1;                            // cube-map cells per face side
   std::vector<int> start;                  // per cube-map cell: a face near it
   int max_steps = 0;
+
+  const Tree& built_tree() const {
+    std::call_once(tree_built, [this] {
+      tree.insert(chords.cbegin(), chords.cend());
+      tree.build();
+    });
+    return tree;
+  }
 
   int cell(const Vec3& p) const {
     const Vec3 a = p.cwiseAbs();
@@ -134,7 +144,7 @@ struct SphereLocator::Impl {
     if (walked >= 0 && !boundary) return result(walked, p);
     const Kernel::Ray_3 ray(Point(0, 0, 0), q);
     if (walked < 0) {
-      const auto hit = tree.any_intersected_primitive(ray);
+      const auto hit = built_tree().any_intersected_primitive(ray);
       if (hit) {
         const int f = static_cast<int>(*hit - chords.cbegin());
         if (contains(f, q, boundary) && !boundary) return result(f, p);
@@ -143,7 +153,7 @@ struct SphereLocator::Impl {
     // On an edge or a vertex (or a map that is not a bijection): every face the ray meets,
     // the smallest index that contains p exactly wins.
     std::list<Tree::Primitive_id> all;
-    tree.all_intersected_primitives(ray, std::back_inserter(all));
+    built_tree().all_intersected_primitives(ray, std::back_inserter(all));
     int best = -1;
     for (const auto& id : all) {
       const int f = static_cast<int>(id - chords.cbegin());
@@ -176,32 +186,46 @@ struct SphereLocator::Impl {
 SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<Triangle>& triangles)
     : impl_(std::make_unique<Impl>()) {
   if (triangles.empty() || sphere.empty()) throw TopologyError("sphere locator: the sphere map is empty");
-  impl_->sphere = sphere;
-  impl_->triangles = triangles;
-  impl_->chords.reserve(triangles.size());
-  for (const Triangle& t : triangles)
-    impl_->chords.emplace_back(to_point(sphere[t[0]]), to_point(sphere[t[1]]), to_point(sphere[t[2]]));
-  impl_->tree.insert(impl_->chords.cbegin(), impl_->chords.cend());
-  impl_->tree.build();
-  // Neighbours across edges.
   Impl& d = *impl_;
+  d.sphere = sphere;
+  d.triangles = triangles;
+  d.chords.reserve(triangles.size());
+  for (const Triangle& t : triangles)
+    d.chords.emplace_back(to_point(sphere[t[0]]), to_point(sphere[t[1]]), to_point(sphere[t[2]]));
+  // Neighbours across edges: the half-edges leaving each vertex (counting sort), then for the
+  // half-edge a -> b its twin among those leaving b.
   const int nf = static_cast<int>(triangles.size());
+  const int nv = static_cast<int>(sphere.size());
+  std::vector<int> first(static_cast<std::size_t>(nv) + 1, 0), leaving(static_cast<std::size_t>(nf) * 3);
+  for (const Triangle& t : triangles)
+    for (int k = 0; k < 3; ++k) {
+      if (t[k] < 0 || t[k] >= nv) throw TopologyError("sphere locator: a triangle indexes a missing vertex");
+      ++first[static_cast<std::size_t>(t[k]) + 1];
+    }
+  for (int v = 0; v < nv; ++v) first[static_cast<std::size_t>(v) + 1] += first[static_cast<std::size_t>(v)];
+  {
+    std::vector<int> fill(first.begin(), first.end() - 1);
+    for (int f = 0; f < nf; ++f)
+      for (int k = 0; k < 3; ++k) leaving[static_cast<std::size_t>(fill[static_cast<std::size_t>(triangles[f][k])]++)] = f * 3 + k;
+  }
   d.across.assign(nf, {-1, -1, -1});
-  std::unordered_map<std::uint64_t, int> directed;
-  directed.reserve(static_cast<std::size_t>(nf) * 3);
-  auto key = [](int a, int b) {
-    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
-  };
-  for (int f = 0; f < nf; ++f)
-    for (int k = 0; k < 3; ++k) directed.emplace(key(triangles[f][k], triangles[f][(k + 1) % 3]), f * 3 + k);
   for (int f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k) {
-      const auto it = directed.find(key(triangles[f][(k + 1) % 3], triangles[f][k]));
-      if (it != directed.end()) d.across[f][k] = it->second / 3;
+      const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
+      for (int i = first[static_cast<std::size_t>(b)]; i < first[static_cast<std::size_t>(b) + 1]; ++i) {
+        const int h = leaving[static_cast<std::size_t>(i)];
+        if (triangles[h / 3][(h % 3 + 1) % 3] == a) {
+          d.across[f][k] = h / 3;
+          break;
+        }
+      }
     }
-  // Cube map with about one vertex per two cells; each cell starts at a face of a vertex in it,
-  // or (empty cells) at the face the AABB tree finds for the cell's centre.
+  // Cube map with about one vertex per two cells; each cell starts at a face of a vertex in it.
+  // An empty cell walks from a filled neighbour's face to its centre; cells no walk reaches ask
+  // the AABB tree. The start face only decides where a walk begins: located faces do not
+  // depend on it.
   d.grid = std::max(2, static_cast<int>(std::sqrt(static_cast<double>(sphere.size()) / 12.0)));
+  d.max_steps = 64 + 4 * static_cast<int>(std::sqrt(static_cast<double>(nf)));
   d.start.assign(static_cast<std::size_t>(6 * d.grid * d.grid), -1);
   for (int f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k) {
@@ -211,12 +235,34 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
         if (s < 0) s = f;
       }
     }
+  const int g = d.grid;
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<int> next = d.start;
+    for (int c = 0; c < static_cast<int>(d.start.size()); ++c) {
+      if (d.start[static_cast<std::size_t>(c)] >= 0) continue;
+      const int iv = c % g, iu = (c / g) % g, face = c / (g * g);
+      int from = -1;
+      for (const auto& [du, dv] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+        const int u = iu + du, v = iv + dv;
+        if (u < 0 || u >= g || v < 0 || v >= g) continue;
+        from = d.start[static_cast<std::size_t>((face * g + u) * g + v)];
+        if (from >= 0) break;
+      }
+      if (from < 0) continue;
+      bool on_boundary = false;
+      const int walked = d.walk(from, to_point(d.cell_centre(c)), on_boundary);
+      next[static_cast<std::size_t>(c)] = walked >= 0 ? walked : from;
+      changed = true;
+    }
+    d.start.swap(next);
+  }
   for (std::size_t c = 0; c < d.start.size(); ++c)
     if (d.start[c] < 0) {
-      const auto hit = d.tree.any_intersected_primitive(Kernel::Ray_3(Point(0, 0, 0), to_point(d.cell_centre(static_cast<int>(c)))));
+      const auto hit = d.built_tree().any_intersected_primitive(
+          Kernel::Ray_3(Point(0, 0, 0), to_point(d.cell_centre(static_cast<int>(c)))));
       d.start[c] = hit ? static_cast<int>(*hit - d.chords.cbegin()) : 0;
     }
-  d.max_steps = 64 + 4 * static_cast<int>(std::sqrt(static_cast<double>(nf)));
 }
 
 SphereLocator::~SphereLocator() = default;

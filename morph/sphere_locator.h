@@ -4,9 +4,10 @@
 /// triangle holds a direction, with which barycentric coordinates, and where that is on the
 /// muscle. The thesis tested every triangle (O(N T)). Here a query walks from a start face stored
 /// per cube-map cell across the edges whose plane through the centre has the point on its
-/// negative side (a visibility walk with exact orientation predicates, a few steps); a CGAL AABB
-/// tree over the chord triangles, queried with the ray from the centre, seeds empty cells,
-/// resolves points exactly on edges and vertices, and is the fallback should a walk not finish.
+/// negative side (a visibility walk with exact orientation predicates, a few steps); an empty
+/// cell starts where a walk from a neighbouring cell reaches its centre. A CGAL AABB tree over the
+/// chord triangles, queried with the ray from the centre, resolves points exactly on edges and
+/// vertices and is the fallback should a walk not finish; it is built on first use.
 
 #include "geometry/mesh.h"
 #include "morph/surface_query.h"
