@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <unordered_map>
@@ -39,8 +40,18 @@ std::vector<char> region_of(const TriangleMesh& mesh, const AttachmentArea& area
     grid[hash(k[0], k[1], k[2])].push_back(static_cast<int>(i));
   }
   const double r2 = radius * radius;
+  // Vertices outside the points' box grown by twice the radius are farther than the radius
+  // from every point: no grid lookups for them.
+  Vec3 box_lo = Vec3::Constant(std::numeric_limits<double>::infinity()), box_hi = -box_lo;
+  for (const SurfacePoint& sp : area.points) {
+    box_lo = box_lo.cwiseMin(sp.position);
+    box_hi = box_hi.cwiseMax(sp.position);
+  }
+  box_lo.array() -= 2.0 * radius;
+  box_hi.array() += 2.0 * radius;
   for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
     const Vec3& p = mesh.positions[v];
+    if ((p.array() < box_lo.array()).any() || (p.array() > box_hi.array()).any()) continue;
     const auto k = key(p);
     bool found = false;
     for (long long dx = -1; dx <= 1 && !found; ++dx)
@@ -364,14 +375,38 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   // Twist: the template's r axis (azimuth 0 in its frame) towards the muscle's second axis.
   const PrincipalAxes axes = principal_axes(muscle.positions);
   const Vec3 second = axes.axes.col(1);
+  // Per vertex and per face, what place() below needs and does not depend on the face scales:
+  // pole-frame angles, star radii, cos and sin of the azimuth, face areas (place() runs up to
+  // 1 + face_shrink_rounds times).
+  std::vector<double> vertex_theta(nv), vertex_phi(nv), vertex_cos(nv), vertex_sin(nv), vertex_ro(nv), vertex_ri(nv);
+  for (std::size_t v = 0; v < nv; ++v) {
+    vertex_theta[v] = polar_angle(pole[v]);
+    vertex_phi[v] = azimuth(pole[v]);
+    vertex_cos[v] = std::cos(vertex_phi[v]);
+    vertex_sin[v] = std::sin(vertex_phi[v]);
+    vertex_ro[v] = origin_radius(vertex_phi[v]);
+    vertex_ri[v] = insertion_radius(vertex_phi[v]);
+  }
+  const std::size_t n_faces = muscle.triangles.size();
+  std::vector<double> face_theta(n_faces), face_phi(n_faces), face_ro(n_faces), face_ri(n_faces), face_area(n_faces);
+  for (std::size_t f = 0; f < n_faces; ++f) {
+    const Triangle& t = muscle.triangles[f];
+    const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
+    face_phi[f] = azimuth(c);
+    face_theta[f] = polar_angle(c);
+    face_ro[f] = origin_radius(face_phi[f]);
+    face_ri[f] = insertion_radius(face_phi[f]);
+    face_area[f] = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
+                             .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
+                             .norm();
+  }
   double sx = 0.0, sy = 0.0;
   for (std::size_t v = 0; v < nv; ++v) {
-    const double theta = polar_angle(pole[v]);
+    const double theta = vertex_theta[v];
     if (theta < kPi / 4.0 || theta > 3.0 * kPi / 4.0) continue;
     const double w = (muscle.positions[v] - axes.mean).dot(second) * vertex_area[v];
-    const double phi = azimuth(pole[v]);
-    sx += w * std::cos(phi);
-    sy += w * std::sin(phi);
+    sx += w * vertex_cos[v];
+    sy += w * vertex_sin[v];
   }
   const double twist = (sx == 0.0 && sy == 0.0) ? 0.0 : std::atan2(sy, sx);
 
@@ -379,21 +414,22 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   // lattice: template sphere -> muscle pole frame -> muscle sphere. `so` and `si` scale the two
   // star radii (the part of each region the attachment face covers).
   std::vector<int> surface_points;
+  constexpr int kBandBins = 512;
+  Cumulative template_band(kBandBins);
+  for (const Triangle& t : lattice.surface) {
+    const Vec3 c =
+        (template_pole_vector(index_coords(lattice, t[0])) + template_pole_vector(index_coords(lattice, t[1])) +
+         template_pole_vector(index_coords(lattice, t[2])))
+            .normalized();
+    const double edge = face_edge(azimuth(c));
+    const double u = (polar_angle(c) - edge) / (kPi - 2.0 * edge);
+    const auto& p = lattice.system.positions;
+    const double a = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]).norm();
+    template_band.add(u, a);
+  }
+  template_band.finish();
   auto place = [&](double so, double si) {
-    constexpr int kBandBins = 512;
-    Cumulative muscle_band(kBandBins), template_band(kBandBins);
-    for (const Triangle& t : lattice.surface) {
-      const Vec3 c =
-          (template_pole_vector(index_coords(lattice, t[0])) + template_pole_vector(index_coords(lattice, t[1])) +
-           template_pole_vector(index_coords(lattice, t[2])))
-              .normalized();
-      const double edge = face_edge(azimuth(c));
-      const double u = (polar_angle(c) - edge) / (kPi - 2.0 * edge);
-      const auto& p = lattice.system.positions;
-      const double a = 0.5 * (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]).norm();
-      template_band.add(u, a);
-    }
-    template_band.finish();
+    Cumulative muscle_band(kBandBins);
 
     // Twist along the band: at each level u the template's r axis turns towards the muscle's
     // second principal axis as seen from that level's centroid, so that the lattice follows the
@@ -404,9 +440,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     std::vector<double> level_area(kLevels, 0.0), level_x(kLevels, 0.0), level_y(kLevels, 0.0);
     std::vector<int> level_of(nv, -1);
     for (std::size_t v = 0; v < nv; ++v) {
-      const double phi = azimuth(pole[v]);
-      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
-      const double u = (polar_angle(pole[v]) - ro) / (kPi - ri - ro);
+      const double ro = so * vertex_ro[v], ri = si * vertex_ri[v];
+      const double u = (vertex_theta[v] - ro) / (kPi - ri - ro);
       if (!(u >= 0.0 && u <= 1.0)) continue;
       const int b = std::min(kLevels - 1, static_cast<int>(u * kLevels));
       level_of[v] = b;
@@ -419,9 +454,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       if (level_of[v] < 0) continue;
       const auto b = static_cast<std::size_t>(level_of[v]);
       const double w = (muscle.positions[v] - level_centre[b]).dot(second) * vertex_area[v];
-      const double phi = azimuth(pole[v]);
-      level_x[b] += w * std::cos(phi);
-      level_y[b] += w * std::sin(phi);
+      level_x[b] += w * vertex_cos[v];
+      level_y[b] += w * vertex_sin[v];
     }
     // The muscle's band measure: surface area, or area per level circumference (length along
     // the muscle: rings then sit at even steps along it, which keeps the lattice's layers flat
@@ -433,15 +467,10 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
             vertex_area[v] * (muscle.positions[v] - level_centre[static_cast<std::size_t>(level_of[v])]).norm();
     for (int b = 0; b < kLevels; ++b)
       if (level_area[static_cast<std::size_t>(b)] > 0.0) level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
-    for (std::size_t f = 0; f < muscle.triangles.size(); ++f) {
-      const Triangle& t = muscle.triangles[f];
-      const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
-      const double phi = azimuth(c);
-      const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
-      const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
-      double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
-                           .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
-                           .norm();
+    for (std::size_t f = 0; f < n_faces; ++f) {
+      const double ro = so * face_ro[f], ri = si * face_ri[f];
+      const double u = (face_theta[f] - ro) / (kPi - ri - ro);
+      double a = face_area[f];
       if (options.band_by_length && u >= 0.0 && u <= 1.0) {
         const double r = level_radius[static_cast<std::size_t>(std::min(kLevels - 1, static_cast<int>(u * kLevels)))];
         a = r > 0.0 ? a / r : 0.0;
@@ -507,16 +536,14 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       // Muscle area by level and azimuth bin, smoothed over neighbouring bins and levels (a
       // level of a coarse mesh has few triangles).
       std::vector<std::vector<double>> mass(kRingLevels, std::vector<double>(kRingBins, 0.0));
-      for (const Triangle& t : muscle.triangles) {
-        const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
-        const double phi = azimuth(c);
-        const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
-        const double u = (polar_angle(c) - ro) / (kPi - ri - ro);
+      for (std::size_t f = 0; f < n_faces; ++f) {
+        const double phi = face_phi[f];
+        const double ro = so * face_ro[f], ri = si * face_ri[f];
+        const double u = (face_theta[f] - ro) / (kPi - ri - ro);
         if (!(u >= 0.0 && u <= 1.0)) continue;
         const int level = std::min(kRingLevels - 1, static_cast<int>(u * kRingLevels));
         const int b = std::min(kRingBins - 1, static_cast<int>(ring_share(phi, twist_at(u)) * kRingBins));
-        mass[static_cast<std::size_t>(level)][static_cast<std::size_t>(b)] +=
-            0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]]).cross(muscle.positions[t[2]] - muscle.positions[t[0]]).norm();
+        mass[static_cast<std::size_t>(level)][static_cast<std::size_t>(b)] += face_area[f];
       }
       for (int level = 0; level < kRingLevels; ++level) {
         for (int b = 0; b < kRingBins; ++b) {
