@@ -68,6 +68,9 @@ double chi(double d, double eps) { return 0.5 * (d + std::sqrt(eps * eps + d * d
 double chi_derivative(double d, double eps) { return 0.5 * (1.0 + d / std::sqrt(eps * eps + d * d)); }
 
 // The problem in the free coordinates.
+// The vector terms gather coordinates from the positions as one array of doubles.
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 holds three contiguous doubles");
+
 class Energy {
  public:
   Energy(std::vector<Vec3>& positions, const std::vector<char>& fixed, const std::vector<UntangleTet>& tets,
@@ -94,12 +97,18 @@ class Energy {
     std::vector<std::array<int, 4>> corner_slots(n);
     corner_points_.resize(n);
     for (auto& k : reference_) k.resize(n);
+    for (auto& k : corner_offsets_) k.resize(n);
     weight_.resize(n);
     eps_floor_.resize(n);
     std::vector<int> count(free_.size() + 1, 0);
     for (std::size_t a = 0; a < n; ++a) {
       const UntangleTet& tet = tets[static_cast<std::size_t>(active_[a])];
       corner_points_[a] = tet.v;
+      for (std::size_t v = 0; v < 4; ++v) {
+        if (tet.v[v] > std::numeric_limits<int>::max() / 3)
+          throw Error(ErrorCode::internal, "untangle: too many points for the vector terms");
+        corner_offsets_[v][a] = 3 * tet.v[v];
+      }
       for (int v = 0; v < 4; ++v) {
         corner_slots[a][static_cast<std::size_t>(v)] = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
         if (corner_slots[a][static_cast<std::size_t>(v)] >= 0) ++count[static_cast<std::size_t>(corner_slots[a][static_cast<std::size_t>(v)]) + 1];
@@ -161,22 +170,17 @@ class Energy {
     auto terms = [&](std::size_t begin, std::size_t end) {
       if (lanes > 0) {
         const std::size_t step = static_cast<std::size_t>(lanes);
-        double p[12 * 8];
+        const double* base = positions_.data()->data();
         for (; begin + step <= end; begin += step) {
-          for (std::size_t l = 0; l < step; ++l) {
-            const std::array<int, 4>& corners = corner_points_[begin + l];
-            for (int v = 0; v < 4; ++v) {
-              const Vec3& point = positions_[static_cast<std::size_t>(corners[static_cast<std::size_t>(v)])];
-              for (int c = 0; c < 3; ++c) p[static_cast<std::size_t>(3 * v + c) * step + l] = point[c];
-            }
-          }
+          const int* corners[4];
+          for (std::size_t v = 0; v < 4; ++v) corners[v] = corner_offsets_[v].data() + begin;
           const double* r[9];
           double* gradient[9];
           for (std::size_t k = 0; k < 9; ++k) {
             r[k] = reference_[k].data() + begin;
             gradient[k] = g ? gradients_[k].data() + begin : nullptr;
           }
-          detail::untangle_terms_simd(lanes, p, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
+          detail::untangle_terms_simd(lanes, base, corners, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
                                       terms_.data() + begin, g ? gradient : nullptr);
         }
       }
@@ -298,6 +302,8 @@ class Energy {
   // floor; per free point f, corners_[corner_row_[f] ..
   // corner_row_[f + 1]) = 4 a + corner of the tetrahedra it is a corner of, in order.
   std::vector<std::array<int, 4>> corner_points_;  // each active tetrahedron's points
+  // and 3 times them, vertex by vertex (the vector terms gather the coordinates with them)
+  std::array<std::vector<int>, 4> corner_offsets_;
   std::array<std::vector<double>, 9> reference_;
   std::vector<double> weight_, eps_floor_;
   std::vector<int> corner_row_, corners_;

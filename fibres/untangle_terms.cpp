@@ -38,6 +38,11 @@ void set_untangle_avx512(bool enabled) { g_untangle_avx512 = enabled; }
 
 #pragma GCC push_options
 #pragma GCC target("avx2")
+// GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked gather and the
+// AVX-512 forms) and then warn about it: a false positive.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 namespace avx2 {
 using V = __m256d;
 constexpr int kLanes = 4;
@@ -52,18 +57,20 @@ inline V loadu(const double* p) { return _mm256_loadu_pd(p); }
 inline void storeu(double* p, V v) { _mm256_storeu_pd(p, v); }
 inline V load(const double* p) { return _mm256_load_pd(p); }
 inline void store(double* p, V v) { _mm256_store_pd(p, v); }
+inline V gather(const double* base, const int* index) {
+  return _mm256_i32gather_pd(base, _mm_loadu_si128(reinterpret_cast<const __m128i*>(index)), 8);
+}
 inline bool all_in_range(V c) {
   const V in = _mm256_and_pd(_mm256_cmp_pd(c, set(1e-200), _CMP_GT_OQ), _mm256_cmp_pd(c, set(1e200), _CMP_LT_OQ));
   return _mm256_movemask_pd(in) == 0xF;
 }
 #include "fibres/untangle_terms_body.inc"
 }  // namespace avx2
+#pragma GCC diagnostic pop
 #pragma GCC pop_options
 
 #pragma GCC push_options
 #pragma GCC target("avx512f")
-// GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked forms) and then
-// warn about it: a false positive.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
@@ -81,6 +88,9 @@ inline V loadu(const double* p) { return _mm512_loadu_pd(p); }
 inline void storeu(double* p, V v) { _mm512_storeu_pd(p, v); }
 inline V load(const double* p) { return _mm512_load_pd(p); }
 inline void store(double* p, V v) { _mm512_store_pd(p, v); }
+inline V gather(const double* base, const int* index) {
+  return _mm512_i32gather_pd(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(index)), base, 8);
+}
 inline bool all_in_range(V c) {
   const __mmask8 in = _mm512_cmp_pd_mask(c, set(1e-200), _CMP_GT_OQ) & _mm512_cmp_pd_mask(c, set(1e200), _CMP_LT_OQ);
   return in == 0xFF;
@@ -93,20 +103,21 @@ inline bool all_in_range(V c) {
 bool untangle_terms_avx2_supported() { return __builtin_cpu_supports("avx2"); }
 bool untangle_terms_avx512_supported() { return __builtin_cpu_supports("avx512f"); }
 
-void untangle_terms_simd(int lanes, const double* p, const double* const r[9], const double* weight,
-                         const double* eps_floor, double eps, double lambda, double* term, double* const* grad) {
+void untangle_terms_simd(int lanes, const double* positions, const int* const corners[4], const double* const r[9],
+                         const double* weight, const double* eps_floor, double eps, double lambda, double* term,
+                         double* const* grad) {
   if (lanes == 8)
-    avx512::terms(p, r, weight, eps_floor, eps, lambda, term, grad);
+    avx512::terms(positions, corners, r, weight, eps_floor, eps, lambda, term, grad);
   else
-    avx2::terms(p, r, weight, eps_floor, eps, lambda, term, grad);
+    avx2::terms(positions, corners, r, weight, eps_floor, eps, lambda, term, grad);
 }
 
 #else
 
 bool untangle_terms_avx2_supported() { return false; }
 bool untangle_terms_avx512_supported() { return false; }
-void untangle_terms_simd(int, const double*, const double* const[9], const double*, const double*, double, double,
-                         double*, double* const*) {}
+void untangle_terms_simd(int, const double*, const int* const[4], const double* const[9], const double*,
+                         const double*, double, double, double*, double* const*) {}
 
 #endif
 
