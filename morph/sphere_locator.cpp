@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <cmath>
 #include <limits>
+#include <atomic>
 #include <list>
 #include <mutex>
 #include <stdexcept>
@@ -189,9 +190,14 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
   Impl& d = *impl_;
   d.sphere = sphere;
   d.triangles = triangles;
-  d.chords.reserve(triangles.size());
-  for (const Triangle& t : triangles)
-    d.chords.emplace_back(to_point(sphere[t[0]]), to_point(sphere[t[1]]), to_point(sphere[t[2]]));
+  d.chords.resize(triangles.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangles.size(), 2048),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t f = range.begin(); f != range.end(); ++f) {
+                        const Triangle& t = triangles[f];
+                        d.chords[f] = Triangle3(to_point(sphere[t[0]]), to_point(sphere[t[1]]), to_point(sphere[t[2]]));
+                      }
+                    });
   // Neighbours across edges: the half-edges leaving each vertex (counting sort), then for the
   // half-edge a -> b its twin among those leaving b.
   const int nf = static_cast<int>(triangles.size());
@@ -209,17 +215,19 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
       for (int k = 0; k < 3; ++k) leaving[static_cast<std::size_t>(fill[static_cast<std::size_t>(triangles[f][k])]++)] = f * 3 + k;
   }
   d.across.assign(nf, {-1, -1, -1});
-  for (int f = 0; f < nf; ++f)
-    for (int k = 0; k < 3; ++k) {
-      const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
-      for (int i = first[static_cast<std::size_t>(b)]; i < first[static_cast<std::size_t>(b) + 1]; ++i) {
-        const int h = leaving[static_cast<std::size_t>(i)];
-        if (triangles[h / 3][(h % 3 + 1) % 3] == a) {
-          d.across[f][k] = h / 3;
-          break;
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& range) {
+    for (int f = range.begin(); f != range.end(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
+        for (int i = first[static_cast<std::size_t>(b)]; i < first[static_cast<std::size_t>(b) + 1]; ++i) {
+          const int h = leaving[static_cast<std::size_t>(i)];
+          if (triangles[h / 3][(h % 3 + 1) % 3] == a) {
+            d.across[f][k] = h / 3;
+            break;
+          }
         }
       }
-    }
+  });
   // Cube map with about one vertex per two cells; each cell starts at a face of a vertex in it.
   // An empty cell walks from a filled neighbour's face to its centre; cells no walk reaches ask
   // the AABB tree. The start face only decides where a walk begins: located faces do not
@@ -227,34 +235,48 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
   d.grid = std::max(2, static_cast<int>(std::sqrt(static_cast<double>(sphere.size()) / 12.0)));
   d.max_steps = 64 + 4 * static_cast<int>(std::sqrt(static_cast<double>(nf)));
   d.start.assign(static_cast<std::size_t>(6 * d.grid * d.grid), -1);
+  // Each vertex's cell on threads; a cell takes the first face (by index) with a corner in it.
+  std::vector<int> vertex_cell(static_cast<std::size_t>(nv), -1);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, 2048), [&](const tbb::blocked_range<int>& range) {
+    for (int v = range.begin(); v != range.end(); ++v) {
+      const Vec3& p = sphere[static_cast<std::size_t>(v)];
+      if (p.norm() > 0.0) vertex_cell[static_cast<std::size_t>(v)] = d.cell(p.normalized());
+    }
+  });
   for (int f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k) {
-      const Vec3& v = sphere[triangles[f][k]];
-      if (v.norm() > 0.0) {
-        int& s = d.start[static_cast<std::size_t>(d.cell(v.normalized()))];
-        if (s < 0) s = f;
-      }
+      const int c = vertex_cell[static_cast<std::size_t>(triangles[f][k])];
+      if (c < 0) continue;
+      int& s = d.start[static_cast<std::size_t>(c)];
+      if (s < 0) s = f;
     }
   const int g = d.grid;
   for (bool changed = true; changed;) {
     changed = false;
     std::vector<int> next = d.start;
-    for (int c = 0; c < static_cast<int>(d.start.size()); ++c) {
-      if (d.start[static_cast<std::size_t>(c)] >= 0) continue;
-      const int iv = c % g, iu = (c / g) % g, face = c / (g * g);
-      int from = -1;
-      for (const auto& [du, dv] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
-        const int u = iu + du, v = iv + dv;
-        if (u < 0 || u >= g || v < 0 || v >= g) continue;
-        from = d.start[static_cast<std::size_t>((face * g + u) * g + v)];
-        if (from >= 0) break;
+    std::vector<int> empty;
+    for (int c = 0; c < static_cast<int>(d.start.size()); ++c)
+      if (d.start[static_cast<std::size_t>(c)] < 0) empty.push_back(c);
+    std::atomic<bool> any{false};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, empty.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t e = range.begin(); e != range.end(); ++e) {
+        const int c = empty[e];
+        const int iv = c % g, iu = (c / g) % g, face = c / (g * g);
+        int from = -1;
+        for (const auto& [du, dv] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+          const int u = iu + du, v = iv + dv;
+          if (u < 0 || u >= g || v < 0 || v >= g) continue;
+          from = d.start[static_cast<std::size_t>((face * g + u) * g + v)];
+          if (from >= 0) break;
+        }
+        if (from < 0) continue;
+        bool on_boundary = false;
+        const int walked = d.walk(from, to_point(d.cell_centre(c)), on_boundary);
+        next[static_cast<std::size_t>(c)] = walked >= 0 ? walked : from;
+        any = true;
       }
-      if (from < 0) continue;
-      bool on_boundary = false;
-      const int walked = d.walk(from, to_point(d.cell_centre(c)), on_boundary);
-      next[static_cast<std::size_t>(c)] = walked >= 0 ? walked : from;
-      changed = true;
-    }
+    });
+    changed = any;
     d.start.swap(next);
   }
   for (std::size_t c = 0; c < d.start.size(); ++c)

@@ -7,6 +7,8 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
 #include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -71,15 +73,32 @@ SphereQuality measure_sphere_map(const TriangleMesh& mesh, const std::vector<Vec
     surface[f] = 0.5 * (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
     total_surface += surface[f];
   }
+  // Each triangle's orientation, spherical area and angle errors on threads; the sums below in the
+  // triangles' order, so the figures do not depend on the threads.
+  const std::size_t nf = mesh.triangles.size();
+  std::vector<double> sphere_area(nf), angle_error(3 * nf, 0.0);
+  std::vector<signed char> orientation(nf);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 1024), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t f = range.begin(); f != range.end(); ++f) {
+      const Triangle& t = mesh.triangles[f];
+      const Vec3 &a = sphere[t[0]], &b = sphere[t[1]], &c = sphere[t[2]];
+      orientation[f] = static_cast<signed char>(CGAL::orientation(origin, point(a), point(b), point(c)));
+      sphere_area[f] = detail::sphere_triangle_area(a, b, c);
+      if (surface[f] > 0.0 && total_surface > 0.0) {
+        const Vec3 &pa = mesh.positions[t[0]], &pb = mesh.positions[t[1]], &pc = mesh.positions[t[2]];
+        angle_error[3 * f] = std::abs(sphere_angle(a, b, c) - plane_angle(pa, pb, pc));
+        angle_error[3 * f + 1] = std::abs(sphere_angle(b, c, a) - plane_angle(pb, pc, pa));
+        angle_error[3 * f + 2] = std::abs(sphere_angle(c, a, b) - plane_angle(pc, pa, pb));
+      }
+    }
+  });
   double log_sum = 0.0, angle_sum = 0.0;
   long log_count = 0, angle_count = 0;
   q.area_ratio_min = std::numeric_limits<double>::infinity();
   q.area_ratio_max = 0.0;
-  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
-    const Triangle& t = mesh.triangles[f];
-    const Vec3 &a = sphere[t[0]], &b = sphere[t[1]], &c = sphere[t[2]];
-    const CGAL::Orientation o = CGAL::orientation(origin, point(a), point(b), point(c));
-    const double area = detail::sphere_triangle_area(a, b, c);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const CGAL::Orientation o = static_cast<CGAL::Orientation>(orientation[f]);
+    const double area = sphere_area[f];
     if (o == CGAL::NEGATIVE)
       ++q.flipped;
     else if (o == CGAL::COPLANAR || area < degenerate_area)
@@ -93,12 +112,8 @@ SphereQuality measure_sphere_map(const TriangleMesh& mesh, const std::vector<Vec
         log_sum += std::abs(std::log(ratio));
         ++log_count;
       }
-      const Vec3 &pa = mesh.positions[t[0]], &pb = mesh.positions[t[1]], &pc = mesh.positions[t[2]];
-      const double errors[3] = {
-          std::abs(sphere_angle(a, b, c) - plane_angle(pa, pb, pc)),
-          std::abs(sphere_angle(b, c, a) - plane_angle(pb, pc, pa)),
-          std::abs(sphere_angle(c, a, b) - plane_angle(pc, pa, pb))};
-      for (double e : errors) {
+      for (int k = 0; k < 3; ++k) {
+        const double e = angle_error[3 * f + static_cast<std::size_t>(k)];
         angle_sum += e;
         q.angle_error_max_deg = std::max(q.angle_error_max_deg, e * 180.0 / M_PI);
         ++angle_count;
