@@ -7,6 +7,7 @@
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 
@@ -150,4 +151,25 @@ TEST_CASE("both starts give a bijection when forced", "[morph]") {
   CHECK(j.at("quality").at("flipped") == 0);
   CHECK(j.at("quality").at("degenerate") == 0);
   CHECK(j.at("status") == "ok");
+}
+
+TEST_CASE("the sphere map is the same to the bit on one thread and on four", "[morph]") {
+  // The quality figures are computed on threads and summed in the triangles' order: the map and
+  // its report may not depend on the threads.
+  const TriangleMesh bent = test::bent_capsule(1.0, 8.0, 48, 90.0);
+  const TriangleMesh round = test::icosphere(5);
+  for (const TriangleMesh* mesh : {&bent, &round}) {
+    SphereMap one, many;
+    tbb::task_arena(1).execute([&] { one = map_to_sphere(*mesh); });
+    tbb::task_arena(4).execute([&] { many = map_to_sphere(*mesh); });
+    REQUIRE(one.report.iterations > 0);  // the balancing ran
+    REQUIRE(one.positions.size() == many.positions.size());
+    long differ = 0;
+    for (std::size_t v = 0; v < one.positions.size(); ++v) differ += one.positions[v] == many.positions[v] ? 0 : 1;
+    INFO(mesh->positions.size() << " vertices");
+    CHECK(differ == 0);
+    CHECK(one.report.rejected_moves == many.report.rejected_moves);
+    CHECK(one.report.quality.area_log_mean == many.report.quality.area_log_mean);
+    CHECK(one.report.quality.angle_error_mean_deg == many.report.quality.angle_error_mean_deg);
+  }
 }
