@@ -67,10 +67,10 @@ double two_thirds_power(double c) {
 double chi(double d, double eps) { return 0.5 * (d + std::sqrt(eps * eps + d * d)); }
 double chi_derivative(double d, double eps) { return 0.5 * (1.0 + d / std::sqrt(eps * eps + d * d)); }
 
-// The problem in the free coordinates.
 // The vector terms gather coordinates from the positions as one array of doubles.
 static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 holds three contiguous doubles");
 
+// The problem in the free coordinates.
 class Energy {
  public:
   Energy(std::vector<Vec3>& positions, const std::vector<char>& fixed, const std::vector<UntangleTet>& tets,
@@ -104,12 +104,10 @@ class Energy {
     for (std::size_t a = 0; a < n; ++a) {
       const UntangleTet& tet = tets[static_cast<std::size_t>(active_[a])];
       corner_points_[a] = tet.v;
-      for (std::size_t v = 0; v < 4; ++v) {
-        if (tet.v[v] > std::numeric_limits<int>::max() / 3)
-          throw Error(ErrorCode::internal, "untangle: too many points for the vector terms");
-        corner_offsets_[v][a] = 3 * tet.v[v];
-      }
       for (int v = 0; v < 4; ++v) {
+        if (tet.v[static_cast<std::size_t>(v)] > std::numeric_limits<int>::max() / 3)
+          throw Error(ErrorCode::internal, "untangle: too many points for the vector terms");
+        corner_offsets_[static_cast<std::size_t>(v)][a] = 3 * tet.v[static_cast<std::size_t>(v)];
         corner_slots[a][static_cast<std::size_t>(v)] = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
         if (corner_slots[a][static_cast<std::size_t>(v)] >= 0) ++count[static_cast<std::size_t>(corner_slots[a][static_cast<std::size_t>(v)]) + 1];
       }

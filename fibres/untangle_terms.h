@@ -14,13 +14,12 @@ namespace fascicle::detail {
 /// Vertex v of tetrahedron l is the point at positions[corners[v][l] + 0..2] (corners: `lanes`
 /// consecutive indices per vertex, 3 times the point's index; gathered straight into the vector
 /// registers); r[k]: entry k of the reference inverses (column-major), `lanes` consecutive
-/// values; weight and eps_floor likewise (the tetrahedron's
-/// eps is max(eps, eps_floor)). Writes term[0..lanes) = weight ((1 - lambda) shape + lambda
-/// volume) and, where `grad` is not null, grad[k][0..lanes): entry k (column-major) of the terms'
-/// gradients by the edge vectors.
+/// values; weight and eps_floor likewise (the tetrahedron's eps is max(eps, eps_floor)).
+/// Writes term[0..lanes) = weight ((1 - lambda) shape + lambda volume) and, where `grad` is not
+/// null, grad[k][0..lanes): entry k (column-major) of the terms' gradients by the edge vectors.
 void untangle_terms_simd(int lanes, const double* positions, const int* const corners[4], const double* const r[9],
-                         const double* weight,
-                         const double* eps_floor, double eps, double lambda, double* term, double* const* grad);
+                         const double* weight, const double* eps_floor, double eps, double lambda, double* term,
+                         double* const* grad);
 
 /// Lanes of the vector terms to use now: 8 (AVX-512), 4 (AVX2) or 0 (the scalar code only).
 int untangle_simd_lanes();

@@ -14,10 +14,9 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdint>
+#include <atomic>
 #include <cmath>
 #include <limits>
-#include <atomic>
 #include <list>
 #include <mutex>
 #include <stdexcept>
@@ -251,8 +250,7 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
       if (s < 0) s = f;
     }
   const int g = d.grid;
-  for (bool changed = true; changed;) {
-    changed = false;
+  for (;;) {
     std::vector<int> next = d.start;
     std::vector<int> empty;
     for (int c = 0; c < static_cast<int>(d.start.size()); ++c)
@@ -276,8 +274,8 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
         any = true;
       }
     });
-    changed = any;
     d.start.swap(next);
+    if (!any) break;
   }
   for (std::size_t c = 0; c < d.start.size(); ++c)
     if (d.start[c] < 0) {
