@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <memory>
 #include <optional>
 #include <unordered_map>
 #include <tuple>
@@ -446,10 +447,48 @@ struct MuscleSphere {
   double seconds = 0.0;
 };
 
+// The template lattice of the options (a ring of surface lines round the fibres) and the factor
+// of its zero-rest-length (harmonic) settle's matrix: neither depends on the muscle, so they are
+// made beside the sphere map, once for all attempts (no retry changes the lattice options).
+struct PreparedLattice {
+  springs::LatticeOptions options;
+  springs::Lattice lattice;
+  std::shared_ptr<const springs::SpringMatrixFactor> harmonic;
+  double factor_seconds = 0.0;
+};
+
+springs::LatticeOptions lattice_options_of(const DecomposeOptions& options) {
+  const auto split = springs::near_square_split(options.fibres);
+  springs::LatticeOptions lattice_options;
+  lattice_options.kind = options.kind;
+  lattice_options.nr = split[0] + 2;
+  lattice_options.ns = split[1] + 2;
+  lattice_options.resolution = options.resolution;
+  lattice_options.model = options.model;
+  return lattice_options;
+}
+
+bool same_lattice(const springs::LatticeOptions& a, const springs::LatticeOptions& b) {
+  return a.kind == b.kind && a.fibres == b.fibres && a.nr == b.nr && a.ns == b.ns && a.resolution == b.resolution &&
+         a.model == b.model && a.density == b.density;
+}
+
+PreparedLattice prepare_lattice(const DecomposeOptions& options) {
+  PreparedLattice out;
+  out.options = lattice_options_of(options);
+  out.lattice = springs::build_lattice(out.options);
+  const auto start = Clock::now();
+  out.harmonic = springs::factor_spring_matrix(out.lattice.system);  // the rest lengths play no part
+  out.factor_seconds = since(start);
+  return out;
+}
+
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-// `query` and `sphere` are built on `muscle` once for all attempts.
+// `query`, `sphere` and `prepared` are made once for all attempts (`prepared` is made again here
+// when its lattice options are not the attempt's).
 Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
-                                const Landmarks& landmarks, const DecomposeOptions& options) {
+                                const PreparedLattice& prepared, const Landmarks& landmarks,
+                                const DecomposeOptions& options) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -487,13 +526,10 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Template lattice with a ring of surface lines, placed on the muscle.
   auto stage = Clock::now();
   const auto split = springs::near_square_split(options.fibres);
-  springs::LatticeOptions lattice_options;
-  lattice_options.kind = options.kind;
-  lattice_options.nr = split[0] + 2;
-  lattice_options.ns = split[1] + 2;
-  lattice_options.resolution = options.resolution;
-  lattice_options.model = options.model;
-  const springs::Lattice lattice = springs::build_lattice(lattice_options);
+  std::optional<PreparedLattice> own;
+  if (!same_lattice(prepared.options, lattice_options_of(options))) own.emplace(prepare_lattice(options));
+  const PreparedLattice& ready = own ? *own : prepared;
+  const springs::Lattice& lattice = ready.lattice;
   const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);
   report.placement = placement.report.to_json();
   report.lattice = {{"template", springs::template_name(options.kind)},
@@ -523,8 +559,11 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     linear.acceleration = springs::Acceleration::none;
     linear.tolerance = 1e-12;
     linear.max_iterations = 4;
-    const springs::SettleReport first = springs::settle(harmonic, linear);
+    const springs::SettleReport first = springs::settle(harmonic, linear, nullptr, ready.harmonic);
     report.settle["harmonic"] = settle_json(first);
+    // Its matrix factorized before the attempt (beside the sphere map), or in it (`own`).
+    report.settle["harmonic"]["factor_seconds"] = ready.factor_seconds;
+    report.settle["harmonic"]["factor_made"] = own ? "in_attempt" : "beside_sphere_map";
     system.positions = harmonic.positions;
   }
   if (options.rest != RestShape::zero)
@@ -786,6 +825,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   // each is mostly one thread's work.
   std::optional<SurfaceQuery> built_query;
   MuscleSphere sphere;
+  PreparedLattice prepared;
   double query_seconds = 0.0;
   tbb::parallel_invoke(
       [&] {
@@ -793,6 +833,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
         built_query.emplace(muscle);
         built_query->inside_grid();
         query_seconds = since(t);
+        prepared = prepare_lattice(options);  // the sphere map takes longer than the query
       },
       [&] {
         const auto t = Clock::now();
@@ -802,7 +843,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       });
   const SurfaceQuery& query = *built_query;
   const double setup_seconds = since(start);
-  Decomposition best = decompose_attempt(muscle, query, sphere, landmarks, options);
+  Decomposition best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options);
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
@@ -828,7 +869,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       continue;
     }
     try {
-      Decomposition d = decompose_attempt(muscle, query, sphere, landmarks, retry);
+      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry);
       if (step.starts_sequence) {
         first_inverted = d.report.quality.inverted_cells;
         first_ring_freed = ring_freed(d);

@@ -84,11 +84,17 @@ void SettleOptions::validate() const {
 
 std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
                                           const LatticeShape* shape) {
+  return make_solver(system, options, shape, nullptr);
+}
+
+std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
+                                          const LatticeShape* shape,
+                                          const std::shared_ptr<const SpringMatrixFactor>& factor) {
   options.validate();
   validate(system);
   if (options.solver == SolverKind::static_equilibrium) {
     if (options.static_method == StaticMethod::newton) return detail::make_newton_solver(system, options);
-    if (options.static_method == StaticMethod::local_global) return detail::make_static_solver(system, options);
+    if (options.static_method == StaticMethod::local_global) return detail::make_static_solver(system, options, factor);
     if (options.static_method == StaticMethod::multigrid && detail::multigrid_fits(system, shape))
       return detail::make_multigrid_solver(system, options, *shape);
     // momentum, or multigrid on a system that is not a lattice grid: the momentum method
@@ -113,9 +119,14 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
 }
 
 SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape) {
+  return settle(system, options, shape, nullptr);
+}
+
+SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape,
+                    const std::shared_ptr<const SpringMatrixFactor>& factor) {
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
-  std::unique_ptr<SpringSolver> solver = make_solver(system, options, shape);
+  std::unique_ptr<SpringSolver> solver = make_solver(system, options, shape, factor);
   const auto t1 = clock::now();
   SettleReport report;
   report.solver = solver_name(options.solver);

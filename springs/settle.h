@@ -202,11 +202,33 @@ class SpringSolver {
 std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
                                           const LatticeShape* shape = nullptr);
 
+/// The factorized constant matrix of the local-global static method, L = sum_s D_s A_s A_s^T
+/// over the free points (Eigen SimplicialLDLT). It depends only on which points the springs join,
+/// their stiffness and the fixed flags, not on positions or rest lengths, so it can be made ahead
+/// of the positions (the decomposition makes it beside the sphere map) and given to make_solver
+/// and settle, which then skip the factorization. Opaque; immutable once made.
+class SpringMatrixFactor;
+
+/// Factorizes L for `system` (validated). Throws SolverError as make_solver does for a connected
+/// part of the springs without a fixed point.
+std::shared_ptr<const SpringMatrixFactor> factor_spring_matrix(const SpringSystem& system);
+
+/// make_solver with a matrix factor made ahead: `factor`, when not null, is used by the local-global static method (and ignored by the others)
+/// instead of factorizing; it must have been made for a system with the same points, fixed flags,
+/// spring ends and stiffnesses as `system` (else Error with ErrorCode::internal). The result is the
+/// same to the bit as without it.
+std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
+                                          const LatticeShape* shape,
+                                          const std::shared_ptr<const SpringMatrixFactor>& factor);
+
 /// Settles `system` in one call: steps until the relative residual <= tolerance,
 /// max_iterations, or a stalled step (SpringSolver::stalled), and writes the final positions into system.positions. Fixed points are
 /// bitwise unchanged. Throws as make_solver and SpringSolver::step.
 SettleReport settle(SpringSystem& system, const SettleOptions& options,
                     const LatticeShape* shape = nullptr);
+/// The same with a matrix factor made ahead (make_solver above).
+SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape,
+                    const std::shared_ptr<const SpringMatrixFactor>& factor);
 
 /// The shape of a lattice built by build_lattice or regular_lattice.
 inline LatticeShape shape_of(const Lattice& lattice) {

@@ -95,7 +95,9 @@ std::unique_ptr<SpringSolver> make_multigrid_solver(const SpringSystem& system,
 /// True when `shape` describes `system` as a grid the multigrid solver can use: nx ny nz ==
 /// #points, each >= 2, and every spring joins grid neighbours.
 bool multigrid_fits(const SpringSystem& system, const LatticeShape* shape);
+/// The local-global static method; `factor` null: factorized here (factor_spring_matrix).
 std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,
-                                                 const SettleOptions& options);
+                                                 const SettleOptions& options,
+                                                 std::shared_ptr<const SpringMatrixFactor> factor = nullptr);
 
 }  // namespace fascicle::springs::detail

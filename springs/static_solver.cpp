@@ -17,48 +17,106 @@
 #include <Eigen/SparseCore>
 
 #include <cmath>
+#include <memory>
 #include <numeric>
 
-namespace fascicle::springs::detail {
-namespace {
+namespace fascicle::springs {
 
-int find_root(std::vector<int>& parent, int v) {
-  while (parent[v] != v) {
-    parent[v] = parent[parent[v]];
-    v = parent[v];
-  }
-  return v;
-}
-
-class StaticSolver final : public SpringSolver {
+// The factor and what it was made for (points, fixed flags, spring ends and stiffnesses), so that
+// a factor given for another system is refused instead of solving the wrong equations.
+class SpringMatrixFactor {
  public:
-  StaticSolver(const SpringSystem& system, const SettleOptions& options)
-      : options_(options), system_(system), x_(system.positions) {
+  explicit SpringMatrixFactor(const SpringSystem& system) : fixed_(system.fixed) {
     const int n = static_cast<int>(system.positions.size());
-    check_anchored();
-    free_id_.assign(n, -1);
+    check_anchored(system);
+    free_id.assign(n, -1);
     for (int i = 0; i < n; ++i)
-      if (!system.fixed[i]) free_id_[i] = free_count_++;
+      if (!system.fixed[i]) free_id[i] = free_count++;
     std::vector<Eigen::Triplet<double>> triplets;
-    fixed_rhs_ = Eigen::MatrixXd::Zero(free_count_, 3);
+    springs_.reserve(system.springs.size());
     for (const Spring& s : system.springs) {
-      const int fa = free_id_[s.a], fb = free_id_[s.b];
+      springs_.push_back({s.a, s.b, 0.0, s.stiffness});
+      const int fa = free_id[s.a], fb = free_id[s.b];
       if (fa >= 0) triplets.emplace_back(fa, fa, s.stiffness);
       if (fb >= 0) triplets.emplace_back(fb, fb, s.stiffness);
       if (fa >= 0 && fb >= 0) {
         triplets.emplace_back(fa, fb, -s.stiffness);
         triplets.emplace_back(fb, fa, -s.stiffness);
       }
-      if (fa >= 0 && fb < 0) fixed_rhs_.row(fa) += s.stiffness * system.positions[s.b].transpose();
-      if (fb >= 0 && fa < 0) fixed_rhs_.row(fb) += s.stiffness * system.positions[s.a].transpose();
     }
-    Eigen::SparseMatrix<double> laplacian(free_count_, free_count_);
+    Eigen::SparseMatrix<double> laplacian(free_count, free_count);
     laplacian.setFromTriplets(triplets.begin(), triplets.end());
-    if (free_count_ > 0) {
-      ldlt_.compute(laplacian);
-      if (ldlt_.info() != Eigen::Success)
+    if (free_count > 0) {
+      ldlt.compute(laplacian);
+      if (ldlt.info() != Eigen::Success)
         throw SolverError("static: factorizing the spring matrix failed (a part of the system has no "
                           "fixed point?); fix points or use --solver verlet");
+    }
+  }
+
+  bool made_for(const SpringSystem& system) const {
+    if (system.fixed != fixed_ || system.springs.size() != springs_.size()) return false;
+    for (std::size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = system.springs[i];
+      if (s.a != springs_[i].a || s.b != springs_[i].b || s.stiffness != springs_[i].stiffness) return false;
+    }
+    return true;
+  }
+
+  std::vector<int> free_id;  // free point index of each point, -1 for a fixed one
+  int free_count = 0;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+
+ private:
+  static int find_root(std::vector<int>& parent, int v) {
+    while (parent[v] != v) {
+      parent[v] = parent[parent[v]];
+      v = parent[v];
+    }
+    return v;
+  }
+
+  // Every connected part of the spring graph needs a fixed point, else L is singular.
+  static void check_anchored(const SpringSystem& system) {
+    const int n = static_cast<int>(system.positions.size());
+    std::vector<int> parent(n);
+    std::iota(parent.begin(), parent.end(), 0);
+    for (const Spring& s : system.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
+    std::vector<char> anchored(n, 0);
+    for (int i = 0; i < n; ++i)
+      if (system.fixed[i]) anchored[find_root(parent, i)] = 1;
+    for (int i = 0; i < n; ++i)
+      if (!system.fixed[i] && !anchored[find_root(parent, i)])
+        throw SolverError("static: point " + std::to_string(i) +
+                          " is in a part of the spring system with no fixed point, so its "
+                          "equilibrium is not unique; fix a point there or use --solver verlet");
+  }
+
+  std::vector<char> fixed_;
+  std::vector<Spring> springs_;  // ends and stiffness (rest lengths play no part)
+};
+
+std::shared_ptr<const SpringMatrixFactor> factor_spring_matrix(const SpringSystem& system) {
+  validate(system);
+  return std::make_shared<const SpringMatrixFactor>(system);
+}
+
+namespace detail {
+namespace {
+
+class StaticSolver final : public SpringSolver {
+ public:
+  StaticSolver(const SpringSystem& system, const SettleOptions& options, std::shared_ptr<const SpringMatrixFactor> factor)
+      : options_(options), system_(system), x_(system.positions),
+        factor_(factor ? std::move(factor) : std::make_shared<const SpringMatrixFactor>(system)),
+        free_id_(factor_->free_id), free_count_(factor_->free_count), ldlt_(factor_->ldlt) {
+    if (!factor_->made_for(system))
+      throw Error(ErrorCode::internal, "static: the spring matrix factor given was made for another spring system");
+    fixed_rhs_ = Eigen::MatrixXd::Zero(free_count_, 3);
+    for (const Spring& s : system.springs) {
+      const int fa = free_id_[s.a], fb = free_id_[s.b];
+      if (fa >= 0 && fb < 0) fixed_rhs_.row(fa) += s.stiffness * system.positions[s.b].transpose();
+      if (fb >= 0 && fa < 0) fixed_rhs_.row(fb) += s.stiffness * system.positions[s.a].transpose();
     }
     scale_ = residual_force_scale(system);
     current_ = gather(x_);
@@ -105,22 +163,6 @@ class StaticSolver final : public SpringSolver {
   std::string backend() const override { return "ldlt"; }
 
  private:
-  // Every connected part of the spring graph needs a fixed point, else L is singular.
-  void check_anchored() const {
-    const int n = static_cast<int>(system_.positions.size());
-    std::vector<int> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    for (const Spring& s : system_.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
-    std::vector<char> anchored(n, 0);
-    for (int i = 0; i < n; ++i)
-      if (system_.fixed[i]) anchored[find_root(parent, i)] = 1;
-    for (int i = 0; i < n; ++i)
-      if (!system_.fixed[i] && !anchored[find_root(parent, i)])
-        throw SolverError("static: point " + std::to_string(i) +
-                          " is in a part of the spring system with no fixed point, so its "
-                          "equilibrium is not unique; fix a point there or use --solver verlet");
-  }
-
   Eigen::VectorXd gather(const std::vector<Vec3>& positions) const {
     Eigen::VectorXd v(3 * static_cast<Eigen::Index>(free_count_));
     for (std::size_t i = 0; i < positions.size(); ++i)
@@ -202,10 +244,11 @@ class StaticSolver final : public SpringSolver {
   SettleOptions options_;
   SpringSystem system_;
   std::vector<Vec3> x_;
-  std::vector<int> free_id_;
-  int free_count_ = 0;
+  std::shared_ptr<const SpringMatrixFactor> factor_;
+  const std::vector<int>& free_id_;
+  const int free_count_;
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>& ldlt_;
   Eigen::MatrixXd fixed_rhs_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   Eigen::VectorXd current_, last_f_, last_g_;
   bool have_last_ = false;
   std::vector<Eigen::VectorXd> df_, dg_;
@@ -214,8 +257,10 @@ class StaticSolver final : public SpringSolver {
 
 }  // namespace
 
-std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system, const SettleOptions& options) {
-  return std::make_unique<StaticSolver>(system, options);
+std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system, const SettleOptions& options,
+                                                 std::shared_ptr<const SpringMatrixFactor> factor) {
+  return std::make_unique<StaticSolver>(system, options, std::move(factor));
 }
 
-}  // namespace fascicle::springs::detail
+}  // namespace detail
+}  // namespace fascicle::springs

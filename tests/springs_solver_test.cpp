@@ -516,6 +516,65 @@ TEST_CASE("static with zero rest lengths is exact in one solve", "[springs][solv
     CHECK((system.positions[i] - copy.positions[i]).norm() < 1e-10);
 }
 
+TEST_CASE("a spring matrix factor made ahead gives the local-global solve's bits", "[springs][solver]") {
+  // The factor is made from the template lattice (rest lengths and positions play no part); the
+  // solves then move the fixed points and change the rest lengths, as the decomposition does.
+  const Lattice lattice = moved_lattice(TemplateKind::curved, 36, 6, SpringModel::model6);
+  const std::shared_ptr<const SpringMatrixFactor> factor = factor_spring_matrix(build_lattice([] {
+    LatticeOptions o;
+    o.kind = TemplateKind::curved;
+    o.fibres = 36;
+    o.resolution = 6;
+    return o;
+  }()).system);
+  for (bool zero_rest : {true, false}) {
+    INFO("zero rest lengths " << zero_rest);
+    SpringSystem system = lattice.system;
+    if (zero_rest)
+      for (Spring& s : system.springs) s.rest = 0.0;
+    SettleOptions options;
+    options.solver = SolverKind::static_equilibrium;
+    options.static_method = StaticMethod::local_global;
+    options.acceleration = Acceleration::none;
+    options.tolerance = 1e-10;
+    options.max_iterations = 30;
+    SpringSystem own = system, ahead = system;
+    const SettleReport a = settle(own, options);
+    const SettleReport b = settle(ahead, options, nullptr, factor);
+    CHECK(a.iterations == b.iterations);
+    CHECK(a.residual_history == b.residual_history);
+    CHECK(own.positions == ahead.positions);
+    CHECK(max_distance(own.positions, lattice.system.positions) > 1e-2);
+    if (zero_rest) CHECK(a.iterations == 1);
+  }
+  // A factor made for another system is refused: other fixed flags, another stiffness, other ends.
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.static_method = StaticMethod::local_global;
+  SpringSystem refixed = lattice.system;
+  for (std::size_t i = 0; i < refixed.fixed.size(); ++i)
+    if (!refixed.fixed[i]) {
+      refixed.fixed[i] = 1;
+      break;
+    }
+  SpringSystem stiffer = lattice.system;
+  stiffer.springs[5].stiffness *= 2.0;
+  SpringSystem rewired = lattice.system;
+  std::swap(rewired.springs[3].a, rewired.springs[3].b);
+  for (SpringSystem* other : {&refixed, &stiffer, &rewired}) {
+    try {
+      settle(*other, options, nullptr, factor);
+      FAIL("a factor made for another system was used");
+    } catch (const Error& e) {
+      CHECK(e.code() == ErrorCode::internal);
+    }
+  }
+  // The other methods ignore it.
+  options.static_method = StaticMethod::momentum;
+  SpringSystem momentum = stiffer;
+  CHECK_NOTHROW(settle(momentum, options, nullptr, factor));
+}
+
 TEST_CASE("tolerance 0 runs exactly max_iterations", "[springs][solver]") {
   const Lattice lattice = moved_lattice(TemplateKind::parallel, 16, 5, SpringModel::model6);
   for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
