@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -221,7 +222,10 @@ class Energy {
     else
       terms(0, n);
     double e = 0.0;
-    for (std::size_t a = 0; a < n; ++a) e += terms_[a];
+    const auto sum_terms = [&] {
+      for (std::size_t a = 0; a < n; ++a) e += terms_[a];
+    };
+    if (!g) sum_terms();
     if (g) {
       // Each free point's gradient: its corners' columns (corner 0: minus the sum of the three)
       // added in the tetrahedra's order, as one loop over the tetrahedra would; points in
@@ -245,11 +249,16 @@ class Energy {
           g->segment<3>(3 * static_cast<Eigen::Index>(f)) = sum;
         }
       };
-      if (n >= kParallelTets)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, free_.size(), 256),
-                          [&](const tbb::blocked_range<std::size_t>& r) { gather(r.begin(), r.end()); });
-      else
+      if (n >= kParallelTets) {
+        // The energy's sum (one chain of dependent additions) beside the gather's blocks.
+        tbb::parallel_invoke(sum_terms, [&] {
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, free_.size(), 128),
+                            [&](const tbb::blocked_range<std::size_t>& r) { gather(r.begin(), r.end()); });
+        });
+      } else {
+        sum_terms();
         gather(0, free_.size());
+      }
     }
     for (const UntangleAnchor& a : anchors_) {
       const int s = slot_[static_cast<std::size_t>(a.point)];
