@@ -344,7 +344,12 @@ Census census(const std::vector<Vec3>& positions, const std::vector<UntangleTet>
 int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int history) {
   Eigen::VectorXd g;
   double e = energy.evaluate(x, eps, &g);
-  std::deque<std::pair<Eigen::VectorXd, Eigen::VectorXd>> pairs;  // (s, y)
+  // (s, y) and s . y, computed once (y . s and s . y are the same sum of the same products).
+  struct Pair {
+    Eigen::VectorXd s, y;
+    double sy;
+  };
+  std::deque<Pair> pairs;
   int done = 0;
   for (; done < iterations; ++done) {
     if (!(g.squaredNorm() > 0.0) || !std::isfinite(e)) break;
@@ -352,16 +357,16 @@ int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int
     Eigen::VectorXd q = g;
     std::vector<double> alpha(pairs.size());
     for (std::size_t i = pairs.size(); i-- > 0;) {
-      const double rho = 1.0 / pairs[i].second.dot(pairs[i].first);
-      alpha[i] = rho * pairs[i].first.dot(q);
-      q -= alpha[i] * pairs[i].second;
+      const double rho = 1.0 / pairs[i].sy;
+      alpha[i] = rho * pairs[i].s.dot(q);
+      q -= alpha[i] * pairs[i].y;
     }
-    if (!pairs.empty()) q *= pairs.back().first.dot(pairs.back().second) / pairs.back().second.squaredNorm();
+    if (!pairs.empty()) q *= pairs.back().sy / pairs.back().y.squaredNorm();
     else q *= 1.0 / std::max(1.0, g.cwiseAbs().maxCoeff());
     for (std::size_t i = 0; i < pairs.size(); ++i) {
-      const double rho = 1.0 / pairs[i].second.dot(pairs[i].first);
-      const double beta = rho * pairs[i].second.dot(q);
-      q += (alpha[i] - beta) * pairs[i].first;
+      const double rho = 1.0 / pairs[i].sy;
+      const double beta = rho * pairs[i].y.dot(q);
+      q += (alpha[i] - beta) * pairs[i].s;
     }
     Eigen::VectorXd direction = -q;
     double slope = g.dot(direction);
@@ -389,8 +394,9 @@ int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int
       continue;
     }
     Eigen::VectorXd s = trial - x, y = g_trial - g;
-    if (s.dot(y) > 1e-12 * s.norm() * y.norm()) {
-      pairs.emplace_back(std::move(s), std::move(y));
+    const double sy = s.dot(y);
+    if (sy > 1e-12 * s.norm() * y.norm()) {
+      pairs.push_back({std::move(s), std::move(y), sy});
       if (static_cast<int>(pairs.size()) > history) pairs.pop_front();
     }
     x = std::move(trial);
