@@ -64,6 +64,23 @@ inline bool all_in_range(V c) {
   const V in = _mm256_and_pd(_mm256_cmp_pd(c, set(1e-200), _CMP_GT_OQ), _mm256_cmp_pd(c, set(1e200), _CMP_LT_OQ));
   return _mm256_movemask_pd(in) == 0xF;
 }
+// magic - bits(c) / 3 in each lane, the unsigned 64-bit division exact (see div3 in the body's
+// comment); in registers.
+inline V magic_minus_third(V c, std::uint64_t magic) {
+  const __m256i x = _mm256_castpd_si256(c);
+  const __m256i low32 = _mm256_set1_epi64x(0xFFFFFFFFll);
+  const __m256i m3 = _mm256_set1_epi64x(0xAAAAAAABll);  // ceil(2^33 / 3): floor(v / 3) = v m3 >> 33, v < 2^32
+  const __m256i hi = _mm256_srli_epi64(x, 32), lo = _mm256_and_si256(x, low32);
+  const __m256i qh = _mm256_srli_epi64(_mm256_mul_epu32(hi, m3), 33);
+  const __m256i ql = _mm256_srli_epi64(_mm256_mul_epu32(lo, m3), 33);
+  const __m256i rh = _mm256_sub_epi64(hi, _mm256_add_epi64(qh, _mm256_add_epi64(qh, qh)));
+  const __m256i rl = _mm256_sub_epi64(lo, _mm256_add_epi64(ql, _mm256_add_epi64(ql, ql)));
+  __m256i q = _mm256_add_epi64(_mm256_slli_epi64(qh, 32), _mm256_mul_epu32(rh, _mm256_set1_epi64x(1431655765ll)));
+  q = _mm256_add_epi64(q, ql);
+  // + 1 where rh + rl >= 3 (the compare gives -1 there)
+  q = _mm256_sub_epi64(q, _mm256_cmpgt_epi64(_mm256_add_epi64(rh, rl), _mm256_set1_epi64x(2)));
+  return _mm256_castsi256_pd(_mm256_sub_epi64(_mm256_set1_epi64x(static_cast<long long>(magic)), q));
+}
 #include "fibres/untangle_terms_body.inc"
 }  // namespace avx2
 #pragma GCC diagnostic pop
@@ -95,6 +112,22 @@ inline bool all_in_range(V c) {
   const __mmask8 in = _mm512_cmp_pd_mask(c, set(1e-200), _CMP_GT_OQ) & _mm512_cmp_pd_mask(c, set(1e200), _CMP_LT_OQ);
   return in == 0xFF;
 }
+// magic - bits(c) / 3 in each lane, as the AVX2 one.
+inline V magic_minus_third(V c, std::uint64_t magic) {
+  const __m512i x = _mm512_castpd_si512(c);
+  const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFFll);
+  const __m512i m3 = _mm512_set1_epi64(0xAAAAAAABll);
+  const __m512i hi = _mm512_srli_epi64(x, 32), lo = _mm512_and_si512(x, low32);
+  const __m512i qh = _mm512_srli_epi64(_mm512_mul_epu32(hi, m3), 33);
+  const __m512i ql = _mm512_srli_epi64(_mm512_mul_epu32(lo, m3), 33);
+  const __m512i rh = _mm512_sub_epi64(hi, _mm512_add_epi64(qh, _mm512_add_epi64(qh, qh)));
+  const __m512i rl = _mm512_sub_epi64(lo, _mm512_add_epi64(ql, _mm512_add_epi64(ql, ql)));
+  __m512i q = _mm512_add_epi64(_mm512_slli_epi64(qh, 32), _mm512_mul_epu32(rh, _mm512_set1_epi64(1431655765ll)));
+  q = _mm512_add_epi64(q, ql);
+  const __mmask8 carry = _mm512_cmpgt_epu64_mask(_mm512_add_epi64(rh, rl), _mm512_set1_epi64(2));
+  q = _mm512_mask_add_epi64(q, carry, q, _mm512_set1_epi64(1));
+  return _mm512_castsi512_pd(_mm512_sub_epi64(_mm512_set1_epi64(static_cast<long long>(magic)), q));
+}
 #include "fibres/untangle_terms_body.inc"
 }  // namespace avx512
 #pragma GCC diagnostic pop
@@ -112,12 +145,29 @@ void untangle_terms_simd(int lanes, const double* positions, const int* const co
     avx2::terms(positions, corners, r, weight, eps_floor, eps, lambda, term, grad);
 }
 
+namespace {
+__attribute__((target("avx2"))) void third_bits_avx2(const double* c, std::uint64_t magic, std::uint64_t* out) {
+  _mm256_storeu_pd(reinterpret_cast<double*>(out), avx2::magic_minus_third(_mm256_loadu_pd(c), magic));
+}
+__attribute__((target("avx512f"))) void third_bits_avx512(const double* c, std::uint64_t magic, std::uint64_t* out) {
+  _mm512_storeu_pd(reinterpret_cast<double*>(out), avx512::magic_minus_third(_mm512_loadu_pd(c), magic));
+}
+}  // namespace
+
+void untangle_third_bits_simd(int lanes, const double* c, std::uint64_t magic, std::uint64_t* out) {
+  if (lanes == 8)
+    third_bits_avx512(c, magic, out);
+  else
+    third_bits_avx2(c, magic, out);
+}
+
 #else
 
 bool untangle_terms_avx2_supported() { return false; }
 bool untangle_terms_avx512_supported() { return false; }
 void untangle_terms_simd(int, const double*, const int* const[4], const double* const[9], const double*,
                          const double*, double, double, double*, double* const*) {}
+void untangle_third_bits_simd(int, const double*, std::uint64_t, std::uint64_t*) {}
 
 #endif
 

@@ -8,6 +8,8 @@
 /// untangling gives the same result with either width or none, on every processor
 /// (tests/fibres_untangle_test.cpp compares them).
 
+#include <cstdint>
+
 namespace fascicle::detail {
 
 /// `lanes` (4 or 8, as untangle_simd_lanes() gives) tetrahedra, lane l = tetrahedron l.
@@ -26,6 +28,10 @@ int untangle_simd_lanes();
 /// Whether the processor has AVX2 / AVX-512F.
 bool untangle_terms_avx2_supported();
 bool untangle_terms_avx512_supported();
+/// Test hook: out[l] = the bits magic - bits(c[l]) / 3 (unsigned 64-bit division) for l < lanes,
+/// computed by that width's vector code (the estimate of c^(-1/3) the terms start from); the
+/// width must be supported.
+void untangle_third_bits_simd(int lanes, const double* c, std::uint64_t magic, std::uint64_t* out);
 /// The switches tests use to compare: set_untangle_simd(false): the scalar code only;
 /// set_untangle_avx512(false): AVX2 where AVX-512 is there too.
 void set_untangle_simd(bool enabled);

@@ -9,6 +9,8 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <random>
@@ -332,6 +334,45 @@ TEST_CASE("untangle: the AVX2 and AVX-512 energy terms give the scalar code's re
     CHECK(vector == scalar);                    // bitwise
   }
   detail::set_untangle_avx512(true);
+}
+
+TEST_CASE("untangle: the vector estimate of c^(-1/3) divides the bits by 3 exactly", "[fibres][untangle]") {
+  // The vector code divides each lane's 64 bits by 3 in 32-bit halves (fibres/untangle_terms.h);
+  // four Newton steps later a wrong quotient can still round to the right result, so the
+  // untangling's bitwise comparison above need not see it: the quotient itself is checked here,
+  // on random bit patterns and on halves next to multiples of 3 and to 2^32.
+  std::mt19937_64 rng(11);
+  std::vector<std::uint64_t> bits;
+  for (int i = 0; i < 200000; ++i) bits.push_back(rng());
+  for (std::uint64_t hi : {0ull, 1ull, 2ull, 3ull, 4ull, 5ull, 0x3FEFFFFFull, 0x7FFFFFFEull, 0x7FFFFFFFull, 0xFFFFFFFDull,
+                           0xFFFFFFFEull, 0xFFFFFFFFull})
+    for (std::uint64_t lo = 0; lo < 8; ++lo) {
+      bits.push_back((hi << 32) | lo);
+      bits.push_back((hi << 32) | (0xFFFFFFFFull - lo));
+    }
+  for (double c : {1e-200, 1e-10, 0.3, 1.0, 3.0, 1e10, 1e200}) {
+    std::uint64_t b;
+    std::memcpy(&b, &c, sizeof b);
+    bits.push_back(b);
+  }
+  while (bits.size() % 8 != 0) bits.push_back(rng());
+  const std::uint64_t magic = 0x553ef0ff289dd796ull;
+  for (int lanes : {4, 8}) {
+    if (!(lanes == 4 ? detail::untangle_terms_avx2_supported() : detail::untangle_terms_avx512_supported())) {
+      WARN("this processor lacks the " << lanes << "-lane vector path: not run here");
+      continue;
+    }
+    long wrong = 0;
+    for (std::size_t i = 0; i < bits.size(); i += static_cast<std::size_t>(lanes)) {
+      double c[8];
+      std::memcpy(c, bits.data() + i, sizeof(double) * static_cast<std::size_t>(lanes));
+      std::uint64_t out[8];
+      detail::untangle_third_bits_simd(lanes, c, magic, out);
+      for (int l = 0; l < lanes; ++l) wrong += out[l] == magic - bits[i + static_cast<std::size_t>(l)] / 3 ? 0 : 1;
+    }
+    INFO(lanes << " lanes");
+    CHECK(wrong == 0);
+  }
 }
 
 TEST_CASE("untangle: bad options and bad input", "[fibres][untangle]") {
