@@ -18,7 +18,6 @@
 
 #include <cmath>
 #include <memory>
-#include <numeric>
 
 namespace fascicle::springs {
 
@@ -28,7 +27,7 @@ class SpringMatrixFactor {
  public:
   explicit SpringMatrixFactor(const SpringSystem& system) : fixed_(system.fixed) {
     const int n = static_cast<int>(system.positions.size());
-    check_anchored(system);
+    detail::check_anchored(system);  // a part without a fixed point would make L singular
     free_id.assign(n, -1);
     for (int i = 0; i < n; ++i)
       if (!system.fixed[i]) free_id[i] = free_count++;
@@ -68,30 +67,6 @@ class SpringMatrixFactor {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
 
  private:
-  static int find_root(std::vector<int>& parent, int v) {
-    while (parent[v] != v) {
-      parent[v] = parent[parent[v]];
-      v = parent[v];
-    }
-    return v;
-  }
-
-  // Every connected part of the spring graph needs a fixed point, else L is singular.
-  static void check_anchored(const SpringSystem& system) {
-    const int n = static_cast<int>(system.positions.size());
-    std::vector<int> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    for (const Spring& s : system.springs) parent[find_root(parent, s.a)] = find_root(parent, s.b);
-    std::vector<char> anchored(n, 0);
-    for (int i = 0; i < n; ++i)
-      if (system.fixed[i]) anchored[find_root(parent, i)] = 1;
-    for (int i = 0; i < n; ++i)
-      if (!system.fixed[i] && !anchored[find_root(parent, i)])
-        throw SolverError("static: point " + std::to_string(i) +
-                          " is in a part of the spring system with no fixed point, so its "
-                          "equilibrium is not unique; fix a point there or use --solver verlet");
-  }
-
   std::vector<char> fixed_;
   std::vector<Spring> springs_;  // ends and stiffness (rest lengths play no part)
 };
