@@ -213,10 +213,10 @@ class SpringMatrixFactor;
 /// part of the springs without a fixed point.
 std::shared_ptr<const SpringMatrixFactor> factor_spring_matrix(const SpringSystem& system);
 
-/// make_solver with a matrix factor made ahead: `factor`, when not null, is used by the local-global static method (and ignored by the others)
-/// instead of factorizing; it must have been made for a system with the same points, fixed flags,
-/// spring ends and stiffnesses as `system` (else Error with ErrorCode::internal). The result is the
-/// same to the bit as without it.
+/// make_solver with a matrix factor made ahead: `factor`, when not null, is used by the
+/// local-global static method (and ignored by the others) instead of factorizing; it must have
+/// been made for a system with the same points, fixed flags, spring ends and stiffnesses as
+/// `system` (else Error with ErrorCode::internal). The result is the same to the bit as without it.
 std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const SettleOptions& options,
                                           const LatticeShape* shape,
                                           const std::shared_ptr<const SpringMatrixFactor>& factor);
