@@ -449,7 +449,8 @@ struct MuscleSphere {
 
 // The template lattice of the options (a ring of surface lines round the fibres) and the factor
 // of its zero-rest-length (harmonic) settle's matrix: neither depends on the muscle, so they are
-// made beside the sphere map, once for all attempts (no retry changes the lattice options).
+// made beside the sphere map, once for all attempts (no retry changes the lattice options;
+// decompose_attempt checks it).
 struct PreparedLattice {
   springs::LatticeOptions options;
   springs::Lattice lattice;
@@ -468,11 +469,6 @@ springs::LatticeOptions lattice_options_of(const DecomposeOptions& options) {
   return lattice_options;
 }
 
-bool same_lattice(const springs::LatticeOptions& a, const springs::LatticeOptions& b) {
-  return a.kind == b.kind && a.fibres == b.fibres && a.nr == b.nr && a.ns == b.ns && a.resolution == b.resolution &&
-         a.model == b.model && a.density == b.density;
-}
-
 PreparedLattice prepare_lattice(const DecomposeOptions& options) {
   PreparedLattice out;
   out.options = lattice_options_of(options);
@@ -484,8 +480,7 @@ PreparedLattice prepare_lattice(const DecomposeOptions& options) {
 }
 
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-// `query`, `sphere` and `prepared` are made once for all attempts (`prepared` is made again here
-// when its lattice options are not the attempt's).
+// `query`, `sphere` and `prepared` are made once for all attempts.
 Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
                                 const PreparedLattice& prepared, const Landmarks& landmarks,
                                 const DecomposeOptions& options) {
@@ -526,10 +521,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Template lattice with a ring of surface lines, placed on the muscle.
   auto stage = Clock::now();
   const auto split = springs::near_square_split(options.fibres);
-  std::optional<PreparedLattice> own;
-  if (!same_lattice(prepared.options, lattice_options_of(options))) own.emplace(prepare_lattice(options));
-  const PreparedLattice& ready = own ? *own : prepared;
-  const springs::Lattice& lattice = ready.lattice;
+  const springs::LatticeOptions wanted = lattice_options_of(options);
+  FASCICLE_CHECK(wanted.kind == prepared.options.kind && wanted.nr == prepared.options.nr &&
+                     wanted.ns == prepared.options.ns && wanted.resolution == prepared.options.resolution &&
+                     wanted.model == prepared.options.model,
+                 "the attempt's lattice options are the prepared lattice's");
+  const springs::Lattice& lattice = prepared.lattice;
   const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);
   report.placement = placement.report.to_json();
   report.lattice = {{"template", springs::template_name(options.kind)},
@@ -559,11 +556,10 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     linear.acceleration = springs::Acceleration::none;
     linear.tolerance = 1e-12;
     linear.max_iterations = 4;
-    const springs::SettleReport first = springs::settle(harmonic, linear, nullptr, ready.harmonic);
+    const springs::SettleReport first = springs::settle(harmonic, linear, nullptr, prepared.harmonic);
     report.settle["harmonic"] = settle_json(first);
-    // Its matrix factorized before the attempt (beside the sphere map), or in it (`own`).
-    report.settle["harmonic"]["factor_seconds"] = ready.factor_seconds;
-    report.settle["harmonic"]["factor_made"] = own ? "in_attempt" : "beside_sphere_map";
+    // Its matrix was factorized beside the sphere map, before the attempt.
+    report.settle["harmonic"]["factor_seconds"] = prepared.factor_seconds;
     system.positions = harmonic.positions;
   }
   if (options.rest != RestShape::zero)

@@ -225,8 +225,9 @@ class Energy {
     const auto sum_terms = [&] {
       for (std::size_t a = 0; a < n; ++a) e += terms_[a];
     };
-    if (!g) sum_terms();
-    if (g) {
+    if (!g) {
+      sum_terms();
+    } else {
       // Each free point's gradient: its corners' columns (corner 0: minus the sum of the three)
       // added in the tetrahedra's order, as one loop over the tetrahedra would; points in
       // parallel.

@@ -64,8 +64,8 @@ inline bool all_in_range(V c) {
   const V in = _mm256_and_pd(_mm256_cmp_pd(c, set(1e-200), _CMP_GT_OQ), _mm256_cmp_pd(c, set(1e200), _CMP_LT_OQ));
   return _mm256_movemask_pd(in) == 0xF;
 }
-// magic - bits(c) / 3 in each lane, the unsigned 64-bit division exact (see div3 in the body's
-// comment); in registers.
+// magic - bits(c) / 3 in each lane, the unsigned 64-bit division exact, in registers (the
+// derivation: two_thirds_power_v in untangle_terms_body.inc).
 inline V magic_minus_third(V c, std::uint64_t magic) {
   const __m256i x = _mm256_castpd_si256(c);
   const __m256i low32 = _mm256_set1_epi64x(0xFFFFFFFFll);
