@@ -139,6 +139,14 @@ void add_decompose_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--end-fraction", o.attachments.end_fraction, "Automatic areas: share of the length at each end")
       ->capture_default_str();
+  cmd->add_option("--placement-end-share", o.placement_end_share,
+                  "Automatic areas: the fibre ends are placed on this share of each --end-fraction area (the check "
+                  "keeps the whole areas)")
+      ->capture_default_str();
+  cmd->add_option("--end-share-retry", o.end_share_retry,
+                  "Automatic areas: when the fibres fail the check, decompose once more with the placement's share "
+                  "of the areas times this and keep the better result (0: no such retry)")
+      ->capture_default_str();
   cmd->add_option("--region-radius", o.placement.region_radius,
                   "Attachment region: vertices within this fraction of the muscle length of an area point")
       ->capture_default_str();

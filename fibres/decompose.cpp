@@ -400,6 +400,10 @@ void DecomposeOptions::validate() const {
   for (double twist : landmark_twists_deg)
     if (!(twist >= -180.0 && twist <= 180.0))
       throw OptionError("landmark_twists_deg: each twist must be in [-180, 180], got " + std::to_string(twist));
+  if (!(placement_end_share > 0.0 && placement_end_share <= 1.0))
+    throw OptionError("placement_end_share: must be in (0, 1], got " + std::to_string(placement_end_share));
+  if (!(end_share_retry == 0.0 || (end_share_retry > 0.0 && end_share_retry < 1.0)))
+    throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
 }
 
 nlohmann::json DecomposeReport::to_json() const {
@@ -499,9 +503,17 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                                  landmarks.insertion_source, options.attachments);
     strip = join_landmark_strips(areas, query, muscle_length(muscle), options.strip);
   } else {
-    areas = automatic_attachments(muscle, options.attachments);
+    AttachmentOptions placed = options.attachments;
+    placed.end_fraction *= options.placement_end_share;
+    areas = automatic_attachments(muscle, placed);
   }
+  // The check's areas: the full automatic areas where the placement used a share of them.
+  const Attachments check_areas = !landmarks.given() && options.placement_end_share != 1.0
+                                      ? automatic_attachments(muscle, options.attachments)
+                                      : Attachments{};
+  const Attachments& checked_against = check_areas.origin.points.empty() ? areas : check_areas;
   report.attachments = {{"automatic", areas.automatic},
+                        {"placement_end_share", landmarks.given() ? 1.0 : options.placement_end_share},
                         {"origin", {{"source", areas.origin.source},
                                     {"points", areas.origin.points.size()},
                                     {"max_distance", areas.origin.max_distance}}},
@@ -717,7 +729,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
 
   // Check.
   stage = Clock::now();
-  report.quality = check_fibres(out.fibres, muscle, query, areas, options.check);
+  report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
   report.check_seconds = since(stage);
   report.status = report.quality.pass ? "ok" : "failed";
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";
@@ -738,7 +750,8 @@ nlohmann::json attempt_header(const std::string& change, const DecomposeOptions&
           {"even_perimeter", options.placement.even_perimeter},
           {"contact_depth_min", options.contact_depth_min},
           {"cast_rim", options.cast_rim},
-          {"landmark_strip", options.strip.join}};
+          {"landmark_strip", options.strip.join},
+          {"placement_end_share", options.placement_end_share}};
 }
 
 // One entry of the report's `attempts`: what the attempt changed and how its check came out.
@@ -793,9 +806,16 @@ std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmark
       retry.placement.corner_twist_deg = twist;
       plan.push_back({"corner_twist", retry, false, false});
     }
+  // Automatic areas: a smaller share of them for the placement (the check keeps the full areas).
+  if (!landmarks_given && options.end_share_retry > 0.0) {
+    DecomposeOptions retry = options;
+    retry.placement_end_share = options.placement_end_share * options.end_share_retry;
+    plan.push_back({"end_share", retry, false, false});
+  }
   for (RetryStep& step : plan) {
     step.options.retry_alternative = false;
     step.options.landmark_twists_deg.clear();
+    step.options.end_share_retry = 0.0;
   }
   // Landmark strips that fail every try: the whole plan again with the landmark disks.
   if (landmarks_given && options.strip.join && options.strip.disk_fallback) {

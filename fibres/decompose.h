@@ -139,6 +139,20 @@ struct DecomposeOptions {
   /// retry: their poles are the muscle's ends, where 45 was measured on the whole corpus. Empty:
   /// no retry.
   std::vector<double> landmark_twists_deg = {0.0, 67.5, 22.5};
+  /// Automatic areas only: the areas the lattice's ends are placed on, cast onto and held near
+  /// while untangling are this share of attachments.end_fraction at each end, (0, 1] (default 1).
+  /// The check still measures the fibre ends against the full areas (attachments.end_fraction),
+  /// which contain the smaller ones, so a result passes `fascicle check` with the same
+  /// end fraction.
+  double placement_end_share = 1.0;
+  /// Automatic areas only: when the decomposition (and the retries before this one in
+  /// retry_plan()) fails the check, decompose once more with placement_end_share multiplied by
+  /// this, and keep the better result; (0, 1), or 0 for no such retry (default 0.8: the LHDL psoas,
+  /// whose insertion end hooks, folds 2 cells with the full areas and none with 0.8 of them,
+  /// coverage p95 1.98; 0.6 of them folded 6, and shares 0.6-1.4 left the opendihu left biceps
+  /// at 6-119 folded cells; docs/BENCHMARKS.md, "Decompose", fifteenth session). Not gated by
+  /// retry_max_inverted_cells: a different area changes the whole placement.
+  double end_share_retry = 0.8;
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -186,7 +200,8 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 /// The retries of a decomposition that fails the check, in order, each with what it changes:
 /// "alternative_placement" (alternative_placement(), when options.retry_alternative), then
 /// "rim_left" (options with cast_rim false, when options.retry_alternative and cast_rim), then with
-/// landmark areas one "corner_twist" per options.landmark_twists_deg entry; then, with landmark
+/// landmark areas one "corner_twist" per options.landmark_twists_deg entry, with automatic areas
+/// "end_share" (placement_end_share times options.end_share_retry, when that is not 0); then, with landmark
 /// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
 /// the strips off) and the same plan again with the strips off, each change prefixed
 /// "landmark_disks_". Retries do not retry.

@@ -438,6 +438,8 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   // ---- attachment ----
   const double length = muscle_length(muscle);
   report.attachment.muscle_length = length;
+  report.attachment.origin_points = static_cast<long>(areas.origin.points.size());
+  report.attachment.insertion_points = static_cast<long>(areas.insertion.points.size());
   {
     std::vector<double> to_origin(fibres.lines.size()), to_insertion(fibres.lines.size());
     auto nearest = [](const AttachmentArea& area, const Vec3& p) {
@@ -510,7 +512,9 @@ nlohmann::json CheckReport::to_json() const {
         {"origin_mean", attachment.origin_mean},
         {"insertion_max", attachment.insertion_max},
         {"insertion_mean", attachment.insertion_mean},
-        {"muscle_length", attachment.muscle_length}}},
+        {"muscle_length", attachment.muscle_length},
+        {"origin_points", attachment.origin_points},
+        {"insertion_points", attachment.insertion_points}}},
       {"length", {{"mean", length.mean}, {"min", length.min}, {"max", length.max}, {"cv", length.cv}}},
       {"max_turning_angle_deg", max_turning_angle_deg},
       {"thresholds",

@@ -110,6 +110,7 @@ struct AttachmentFigures {
   double origin_max = 0.0, origin_mean = 0.0;        ///< first points to the origin area
   double insertion_max = 0.0, insertion_mean = 0.0;  ///< last points to the insertion area
   double muscle_length = 0.0;                        ///< principal-axis extent, mesh units
+  long origin_points = 0, insertion_points = 0;      ///< points of the areas measured against
 };
 
 /// Fibre length figures (polyline lengths, mesh units; cv = standard deviation / mean).

@@ -64,10 +64,19 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
       else CHECK(attempts[1]["status"] != "skipped");
       if (attempts[1]["status"] == "ok") CHECK(attempts.size() == 2);
       else {
-        REQUIRE(attempts.size() == 3);
+        REQUIRE(attempts.size() >= 3);
         CHECK(attempts[2]["change"] == "rim_left");
         if (gated) CHECK(attempts[2]["status"] == "skipped");
         else CHECK(attempts[2]["status"] != "skipped");
+        // Then, never skipped, the fibre ends placed on 0.8 of the automatic areas
+        // (DecomposeOptions::end_share_retry).
+        if (attempts[2]["status"] == "ok") CHECK(attempts.size() == 3);
+        else {
+          REQUIRE(attempts.size() == 4);
+          CHECK(attempts[3]["change"] == "end_share");
+          CHECK(attempts[3]["placement_end_share"] == 0.8);
+          CHECK(attempts[3]["status"] != "skipped");
+        }
       }
     }
     const auto& kept = attempts[r["kept_attempt"].get<std::size_t>()];
@@ -75,7 +84,10 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Tenth session, 2026-11-22 14:05-14:16 UTC (docs/BENCHMARKS.md,
+  // Floors, not the goal (every muscle). Fifteenth session, 2026-11-27 (docs/BENCHMARKS.md,
+  // "Decompose", "Fifteenth session"), with the end-share retry: 46 of 47 pass, 46 have no inverted
+  // cell, 47 have coverage p95 <= 2, 14 inverted cells in all (the opendihu left biceps; the LHDL
+  // psoas passes on its end-share retry). Tenth session, 2026-11-22 14:05-14:16 UTC (docs/BENCHMARKS.md,
   // "Decompose", "Fibre ends in the containment energy"), the free-ring attempts retried with the
   // containment energy where they leave folds (containment_retry): 45 of 47 pass, 45 have no
   // inverted cell, 47 have coverage p95 <= 2, 16 inverted cells in all (LHDL psoas 2, opendihu
@@ -105,8 +117,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // session's figures (two for coverage) and the total about 25 % above its 156: libm's
   // processor-specific variants (glibc picks FMA versions of some functions at run time) may still
   // round differently elsewhere, and the untangling's attempts are sensitive to round-off.
-  CHECK(passed >= 44);
-  CHECK(unfolded >= 44);
+  CHECK(passed >= 45);
+  CHECK(unfolded >= 45);
   CHECK(covered >= 45);
   CHECK(inverted <= 60);
 }

@@ -129,6 +129,33 @@ TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "
     CHECK(j.contains(key));
 }
 
+TEST_CASE("fibre ends placed on a share of the automatic areas are checked against the whole areas", "[fibres][decompose]") {
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions options;
+  options.placement_end_share = 0.2;
+  const Decomposition d = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(d.report.attachments["placement_end_share"] == 0.2);
+  const Attachments whole = automatic_attachments(mesh, options.attachments);
+  AttachmentOptions halved = options.attachments;
+  halved.end_fraction *= 0.2;
+  const Attachments placed = automatic_attachments(mesh, halved);
+  REQUIRE(placed.origin.points.size() < whole.origin.points.size());
+  // The report's quality is what `fascicle check` computes with the same end fraction.
+  const CheckReport against_whole = check_fibres(d.fibres, mesh, whole, options.check);
+  const CheckReport against_placed = check_fibres(d.fibres, mesh, placed, options.check);
+  CHECK(d.report.quality.attachment.origin_max == against_whole.attachment.origin_max);
+  CHECK(d.report.quality.attachment.insertion_max == against_whole.attachment.insertion_max);
+  // The smaller areas lie inside the whole ones: the ends are no farther from the whole areas.
+  CHECK(against_whole.attachment.origin_max <= against_placed.attachment.origin_max);
+  CHECK(against_whole.attachment.insertion_max <= against_placed.attachment.insertion_max);
+  // Measured against the whole areas, placed on the smaller ones.
+  CHECK(d.report.quality.attachment.origin_points == static_cast<long>(whole.origin.points.size()));
+  CHECK(d.report.quality.attachment.insertion_points == static_cast<long>(whole.insertion.points.size()));
+  CHECK(d.report.attachments["origin"]["points"] == placed.origin.points.size());
+  CHECK(d.report.attachments["insertion"]["points"] == placed.insertion.points.size());
+  CHECK(d.report.quality.inside_fraction == 1.0);
+}
+
 TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   // The capsule flattened to a 5 : 1 cross-section (semi-axes 3 and 0.6), like a strap or
   // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0) the settled
@@ -295,7 +322,7 @@ TEST_CASE("a decomposition that fails the check is tried again with the alternat
   CHECK_FALSE(twice.report.quality.pass);
   const nlohmann::json attempts = twice.report.to_json()["attempts"];
   INFO(attempts.dump());
-  REQUIRE(attempts.size() == 3);
+  REQUIRE(attempts.size() == 4);
   CHECK(attempts[0]["change"] == "none");
   CHECK(attempts[0]["status"] == "failed");
   CHECK(attempts[1]["change"] == "alternative_placement");
@@ -303,13 +330,17 @@ TEST_CASE("a decomposition that fails the check is tried again with the alternat
   CHECK(attempts[1]["status"] == "failed");
   CHECK(attempts[2]["change"] == "rim_left");
   CHECK(attempts[2]["status"] == "failed");
+  CHECK(attempts[3]["change"] == "end_share");
+  CHECK(attempts[3]["placement_end_share"] == options.end_share_retry);
+  CHECK(attempts[3]["status"] == "failed");
   const int kept = twice.report.kept_attempt;
-  REQUIRE((kept >= 0 && kept <= 2));
-  for (int other = 0; other < 3; ++other)
+  REQUIRE((kept >= 0 && kept <= 3));
+  for (int other = 0; other < 4; ++other)
     CHECK(attempts[kept]["inverted_cells"].get<long>() <= attempts[other]["inverted_cells"].get<long>());
   CHECK(attempts[kept]["coverage_p95"].get<double>() == twice.report.quality.coverage.p95);
   CHECK(twice.report.placement.is_object());
   options.retry_alternative = false;
+  options.end_share_retry = 0.0;
   const Decomposition no_retry = decompose_repaired(mesh, Landmarks{}, options);
   CHECK(no_retry.report.attempts.size() == 1);
   CHECK(no_retry.report.quality.coverage.p95 == Approx(once.report.quality.coverage.p95));
@@ -319,12 +350,21 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   DecomposeOptions options;
   options.landmark_twists_deg = {0.0, 67.5};
   const auto automatic = retry_plan(options, false);
-  REQUIRE(automatic.size() == 2);
+  REQUIRE(automatic.size() == 3);
   CHECK(automatic[0].change == "alternative_placement");
   CHECK(automatic[0].options.cast_rim);
   CHECK(automatic[1].change == "rim_left");
   CHECK_FALSE(automatic[1].options.cast_rim);
   CHECK(automatic[1].options.placement.even_perimeter == options.placement.even_perimeter);
+  // Automatic areas: last, a smaller share of them for the placement, not gated.
+  CHECK(automatic[2].change == "end_share");
+  CHECK(automatic[2].options.placement_end_share == options.end_share_retry);
+  CHECK(automatic[2].options.cast_rim);
+  CHECK_FALSE(automatic[2].gated);
+  for (const RetryStep& step : automatic) {
+    CHECK(step.options.end_share_retry == 0.0);
+    CHECK_NOTHROW(step.options.validate());
+  }
   const auto given = retry_plan(options, true);
   // With the landmark strips: the alternative, the rims left and both twists; then the first try
   // and the same four with the landmark disks (StripOptions::disk_fallback).
@@ -346,6 +386,7 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   for (const RetryStep& step : given) {
     CHECK_FALSE(step.options.retry_alternative);
     CHECK(step.options.landmark_twists_deg.empty());
+    CHECK(step.options.placement_end_share == 1.0);  // landmark areas: no end_share step
     CHECK_NOTHROW(step.options.validate());
     // The alternative placements and the rims left are gated by the first try's folds, the
     // twists are not; only the disks' first try starts a new sequence.
@@ -357,8 +398,10 @@ TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
   CHECK(automatic[1].gated);
   CHECK_FALSE(given[2].gated);
   options.cast_rim = false;
-  CHECK(retry_plan(options, false).size() == 1);
+  CHECK(retry_plan(options, false).size() == 2);
   options.retry_alternative = false;
+  CHECK(retry_plan(options, false).size() == 1);
+  options.end_share_retry = 0.0;
   CHECK(retry_plan(options, false).empty());
   CHECK(retry_plan(options, true).size() == 5);
   options.strip.disk_fallback = false;
@@ -429,6 +472,16 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   DecomposeOptions twist;
   twist.placement.corner_twist_deg = 200.0;
   CHECK_THROWS_WITH(twist.validate(), Catch::Contains("corner_twist_deg"));
+  DecomposeOptions share;
+  share.placement_end_share = 0.0;
+  CHECK_THROWS_WITH(share.validate(), Catch::Contains("placement_end_share"));
+  share.placement_end_share = 1.5;
+  CHECK_THROWS_WITH(share.validate(), Catch::Contains("placement_end_share"));
+  share.placement_end_share = 1.0;
+  share.end_share_retry = 1.0;
+  CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
+  share.end_share_retry = -0.5;
+  CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
   DecomposeOptions depth;
   depth.contact_depth_min = 0.5;  // deeper than contact_depth
   CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));

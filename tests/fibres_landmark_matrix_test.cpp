@@ -89,7 +89,9 @@ TEST_CASE("landmark twists: retried only with landmark areas, only while the che
 
   const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
   CHECK(automatic.report.status == "failed");
-  CHECK(automatic.report.attempts.size() == 1);  // automatic areas: no retry
+  // Automatic areas: no twist; the end-share retry only (the alternative is off here).
+  REQUIRE(automatic.report.attempts.size() == 2);
+  CHECK(automatic.report.attempts[1]["change"] == "end_share");
 
   const Decomposition given = decompose_repaired(mesh, landmarks, options);
   const nlohmann::json& attempts = given.report.attempts;

@@ -510,6 +510,7 @@ TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells
       read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_RectusFemoris_smooth.stl");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;      // (nor the end-share retry)
   options.untangle_cells = false;
   const Decomposition folded = decompose(soup, {}, options);
   REQUIRE(folded.report.quality.inverted_cells > 0);
@@ -580,6 +581,7 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
                                              // default twist of 45 degrees needs no pins here)
   options.retry_alternative = false;  // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;      // (nor the end-share retry)
   options.cast_rim = false;           // the face rims as when the case was found (cast, they
                                       // leave nothing outside to pin here: 2026-11-22)
   options.untangle.sliding_contact = false;  // the containment pins as when the case was found
@@ -606,6 +608,7 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;      // (nor the end-share retry)
   REQUIRE(options.untangle.contact_stall_rounds == 0);  // the default: every containment round
   const Decomposition all_rounds = decompose(soup, {}, options);
   options.untangle.contact_stall_rounds = 2;
@@ -657,6 +660,7 @@ TEST_CASE("untangle in the decomposition: the free-ring attempts run again with 
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;      // (nor the end-share retry)
   REQUIRE(options.untangle.containment_retry);
   REQUIRE_FALSE(options.untangle.containment_energy);
   const Decomposition d = decompose(soup, {}, options);
