@@ -508,10 +508,9 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     areas = automatic_attachments(muscle, placed);
   }
   // The check's areas: the full automatic areas where the placement used a share of them.
-  const Attachments check_areas = !landmarks.given() && options.placement_end_share != 1.0
-                                      ? automatic_attachments(muscle, options.attachments)
-                                      : Attachments{};
-  const Attachments& checked_against = check_areas.origin.points.empty() ? areas : check_areas;
+  const bool shared = !landmarks.given() && options.placement_end_share != 1.0;
+  const Attachments whole_areas = shared ? automatic_attachments(muscle, options.attachments) : Attachments{};
+  const Attachments& checked_against = shared ? whole_areas : areas;
   report.attachments = {{"automatic", areas.automatic},
                         {"placement_end_share", landmarks.given() ? 1.0 : options.placement_end_share},
                         {"origin", {{"source", areas.origin.source},
