@@ -1,8 +1,10 @@
 // fascicle bench gpu: speed of the GPU spring solvers through headless OpenGL, the counterparts
 // of the thesis's tables 7.1 and 7.2 (ms per Verlet iteration, model-6 and model-26, CPU and two
 // GPU methods) and 7.3 (reading 100^3 positions back with glReadPixels and through a pixel
-// buffer object). Every record carries the renderer string: on a machine without a GPU the
-// figures are Mesa llvmpipe's (software rendering on the CPU), not a graphics card's.
+// buffer object), with the stream bandwidth of a compute-shader copy measured in the same run
+// (shaders/stream_bandwidth.h) beside the `gl` kernel. Every record carries the renderer
+// string: on a machine without a GPU the figures are Mesa llvmpipe's (software rendering on the
+// CPU), not a graphics card's.
 // Results and commands are recorded in docs/BENCHMARKS.md.
 
 #include "bench/bench_commands.h"
@@ -12,6 +14,7 @@
 #ifdef FASCICLE_HAVE_SHADERS
 #include "shaders/gl_context.h"
 #include "shaders/gpu_settle.h"
+#include "shaders/stream_bandwidth.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
 
@@ -44,7 +47,13 @@ struct GpuBenchArgs {
   int gl_device = -1;
   double min_seconds = 1.0;   // per ms/iteration measurement
   double give_up_ms = 20000;  // skip larger sizes of a backend once one iteration takes this long
+  int stream_mb = 256;        // buffer size of the stream bandwidth probe, MiB; 0 = no probe
 };
+
+// Least bytes one `gl` structured-uniform Verlet step moves per lattice point: the current
+// position read (its neighbours' reads hit the cache), the previous position read and the new
+// one written over it, vec4 of float32 each (shaders/verlet_lattice.comp).
+constexpr double gl_uniform_bytes_per_point = 3 * 16.0;
 
 std::vector<int> parse_list(const std::string& text, const std::string& option, int lo, int hi) {
   std::vector<int> values;
@@ -124,6 +133,7 @@ void run_gpu_bench(const GpuBenchArgs& args) {
   for (int m : models) parse_spring_model(m);
   const std::vector<std::string> backends = parse_names(args.backends);
   if (!(args.min_seconds > 0.0)) throw OptionError("min-seconds: must be > 0");
+  if (args.stream_mb < 0) throw OptionError("stream-mb: must be >= 0");
 
   GlContextOptions context_options;
   context_options.device = args.gl_device;
@@ -137,9 +147,24 @@ void run_gpu_bench(const GpuBenchArgs& args) {
                           {"hardware", context.hardware()}, {"platform", context.platform()}};
   };
 
+  double stream_gb_per_s = 0.0;
+  if (args.stream_mb > 0) {
+    StreamBandwidthOptions stream;
+    stream.bytes = static_cast<std::size_t>(args.stream_mb) << 20;
+    const StreamBandwidth bw = measure_stream_bandwidth(context, stream);
+    stream_gb_per_s = bw.gb_per_second;
+    std::printf("== stream bandwidth (compute-shader copy of %d MiB, bytes read + written): %.1f GB/s\n",
+                args.stream_mb, bw.gb_per_second);
+    nlohmann::json record = base_record("bandwidth");
+    record.update({{"bytes", bw.bytes}, {"gb_per_second", bw.gb_per_second}, {"dispatches", bw.dispatches},
+                   {"seconds", bw.seconds}});
+    records.push_back(record);
+  }
+
   std::printf("\n== ms per Verlet iteration (thesis tables 7.1, 7.2; 2011: CPU 274 ms, GPU geometry shader 33.7 ms at "
               "100^3 model-6)\n");
-  std::printf("%6s %6s %-22s %12s %10s %12s\n", "n", "model", "backend", "ms/iter", "timed", "GPU MB");
+  std::printf("%6s %6s %-22s %12s %10s %12s %12s %8s\n", "n", "model", "backend", "ms/iter", "timed", "GPU MB",
+              "stream ms", "x stream");
   for (int m : models) {
     const SpringModel model = parse_spring_model(m);
     for (const std::string& backend : backends) {
@@ -179,10 +204,19 @@ void run_gpu_bench(const GpuBenchArgs& args) {
             std::tie(ms, timed) = time_iterations([&](int k) { solver->run(k); solver->finish(); }, args.min_seconds);
             if (!std::isfinite(solver->residual())) name += " (diverged)";
           }
-          std::printf("%6d %6d %-22s %12.3f %10d %12.1f\n", n, m, name.c_str(), ms, timed, bytes / 1e6);
-          std::fflush(stdout);
           record.update({{"backend", name}, {"ms_per_iteration", ms}, {"iterations_timed", timed},
                          {"gpu_bytes", bytes}});
+          if (stream_gb_per_s > 0.0 && name == "gl-structured-uniform") {
+            // The time to move the kernel's least data once at the probe's bandwidth.
+            const double stream_ms =
+                1e3 * gl_uniform_bytes_per_point * lattice.point_count() / (stream_gb_per_s * 1e9);
+            record.update({{"stream_ms", stream_ms}, {"stream_ratio", ms / stream_ms}});
+            std::printf("%6d %6d %-22s %12.3f %10d %12.1f %12.4f %8.2f\n", n, m, name.c_str(), ms, timed,
+                        bytes / 1e6, stream_ms, ms / stream_ms);
+          } else {
+            std::printf("%6d %6d %-22s %12.3f %10d %12.1f\n", n, m, name.c_str(), ms, timed, bytes / 1e6);
+          }
+          std::fflush(stdout);
           if (ms > args.give_up_ms) gave_up = true;
         } catch (const Error& e) {
           std::printf("%6d %6d %-22s   skipped: %s\n", n, m, backend.c_str(), e.what());
@@ -244,6 +278,8 @@ void add_gpu_bench(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
   cmd->add_option("--give-up-ms", args->give_up_ms, "Skip larger sizes once an iteration takes longer")
+      ->capture_default_str();
+  cmd->add_option("--stream-mb", args->stream_mb, "Buffer of the GPU stream bandwidth probe, MiB (0: none)")
       ->capture_default_str();
   cmd->add_option("--json", args->json, "Write the records as JSON here");
   cmd->callback([args] { run_gpu_bench(*args); });

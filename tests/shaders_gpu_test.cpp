@@ -9,6 +9,7 @@
 #include "shaders/gl_context.h"
 #include "shaders/gpu_settle.h"
 #include "shaders/shader_sources.h"
+#include "shaders/stream_bandwidth.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
 
@@ -481,6 +482,30 @@ TEST_CASE("PBO and glReadPixels readbacks agree with the storage-buffer path", "
   CHECK(max_distance(direct.positions, pbo.positions) == 0.0);
   CHECK(max_distance(direct.positions, buffer.positions) < 1e-5);
   CHECK(max_distance(direct.positions, lattice.system.positions) > 1e-3);
+}
+
+TEST_CASE("the stream bandwidth probe copies the whole buffer and times it", "[gpu]") {
+  StreamBandwidthOptions options;
+  options.bytes = (std::size_t(20) << 20) + 48;  // past the source pattern's 16 MiB period, not a whole group
+  options.groups = 7;                             // a grid-stride loop of many rounds per invocation
+  options.repetitions = 2;
+  options.min_seconds = 0.01;
+  StreamBandwidth bw;
+  REQUIRE_NOTHROW(bw = measure_stream_bandwidth(context(), options));  // throws when the copy is wrong
+  CHECK(bw.bytes == options.bytes);
+  CHECK(bw.dispatches >= 1);
+  CHECK(bw.seconds > 0.0);
+  CHECK(bw.gb_per_second == Approx(2.0 * options.bytes * bw.dispatches / bw.seconds / 1e9));
+
+  StreamBandwidthOptions bad;
+  bad.bytes = 40;  // not a multiple of 16
+  CHECK_THROWS_AS(measure_stream_bandwidth(context(), bad), OptionError);
+  bad = StreamBandwidthOptions{};
+  bad.repetitions = 0;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
+  bad = StreamBandwidthOptions{};
+  bad.groups = 70000;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
 }
 
 TEST_CASE("GPU settle errors: divergence, static solver, structured path without a lattice", "[gpu]") {
