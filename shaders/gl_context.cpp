@@ -327,6 +327,16 @@ void GlContext::make_current() const {
     throw GpuError("EGL: eglMakeCurrent failed (" + egl_error_name(eglGetError()) + ")");
 }
 
+void allocate_storage_buffer(unsigned buffer, std::size_t bytes, const void* data, const char* what) {
+  const GLsizeiptr size = static_cast<GLsizeiptr>(std::max<std::size_t>(bytes, 16));
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
+  if (glBufferStorage)
+    glBufferStorage(GL_SHADER_STORAGE_BUFFER, size, data, GL_DYNAMIC_STORAGE_BIT);
+  else
+    glBufferData(GL_SHADER_STORAGE_BUFFER, size, data, GL_DYNAMIC_DRAW);
+  check_gl(what);
+}
+
 void check_gl(const char* where) {
   const GLenum e = glGetError();
   if (e == GL_NO_ERROR) return;

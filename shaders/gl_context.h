@@ -9,6 +9,7 @@
 
 #include "geometry/errors.h"
 
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <vector>
@@ -100,6 +101,13 @@ unsigned compile_program(const std::vector<std::string>& files, const std::strin
 unsigned compile_program_sources(const std::vector<std::pair<std::string, std::string>>& sources,
                                  const std::string& defines = "");
 
+/// Gives the buffer object `buffer` a shader-storage data store of `bytes` bytes (at least 16),
+/// filled from `data` when not null: immutable storage (glBufferStorage with
+/// GL_DYNAMIC_STORAGE_BIT, OpenGL 4.4 or ARB_buffer_storage), which lets the driver keep it in
+/// the device's own memory, else glBufferData with GL_DYNAMIC_DRAW. Call once per buffer
+/// object (an immutable store cannot be specified again). Leaves the buffer bound to
+/// GL_SHADER_STORAGE_BUFFER. Throws GpuError naming `what` on a GL error (out of memory).
+void allocate_storage_buffer(unsigned buffer, std::size_t bytes, const void* data, const char* what);
 /// Throws GpuError naming `where` when glGetError reports an error (out of memory included).
 void check_gl(const char* where);
 

@@ -104,10 +104,7 @@ void storage(const Buffer& buffer, std::size_t bytes, const void* data, const ch
   if (limit > 0 && bytes > static_cast<std::size_t>(limit))
     throw GpuError(std::string("OpenGL: ") + what + " needs " + std::to_string(bytes) +
                    " bytes, above the device's largest storage block (" + std::to_string(limit) + " bytes)");
-  glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer.id);
-  glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(std::max<std::size_t>(bytes, 16)), data,
-               GL_DYNAMIC_DRAW);
-  check_gl(what);
+  allocate_storage_buffer(buffer.id, bytes, data, what);
   total += bytes;
 }
 

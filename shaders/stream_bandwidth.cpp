@@ -21,7 +21,6 @@ void StreamBandwidthOptions::validate() const {
   if (bytes / 16 > 0xffffffffull) throw OptionError("bytes: at most 64 GiB (vec4 count in 32 bits)");
   if (repetitions < 1) throw OptionError("repetitions: must be >= 1, got " + std::to_string(repetitions));
   if (!(min_seconds > 0.0)) throw OptionError("min_seconds: must be > 0");
-  if (groups < 0 || groups > 65535) throw OptionError("groups: must be in 0..65535, got " + std::to_string(groups));
 }
 
 namespace {
@@ -45,9 +44,10 @@ StreamBandwidth measure_stream_bandwidth(const GlContext& context, const StreamB
   options.validate();
   context.make_current();
   const std::size_t count = options.bytes / 16;
-  const GLuint groups = options.groups > 0
-                            ? static_cast<GLuint>(options.groups)
-                            : static_cast<GLuint>(std::min<std::size_t>((count + 255) / 256, 65535));
+  // One invocation per vec4: groups of 256 on a grid of at most 32768 columns.
+  const std::size_t groups = (count + 255) / 256;
+  const GLuint columns = static_cast<GLuint>(std::min<std::size_t>(groups, 32768));
+  const GLuint rows = static_cast<GLuint>((groups + columns - 1) / columns);
   StreamObjects objects;
   objects.program = compile_program({"stream_copy.comp"});
 
@@ -55,16 +55,13 @@ StreamBandwidth measure_stream_bandwidth(const GlContext& context, const StreamB
   // destination cleared to -1.
   std::vector<float> pattern(4 * std::min<std::size_t>(count, std::size_t(1) << 20));
   for (std::size_t k = 0; k < pattern.size(); ++k) pattern[k] = static_cast<float>(k % 16777216);
-  glBindBuffer(GL_SHADER_STORAGE_BUFFER, objects.buffers[0]);
-  glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(options.bytes), nullptr, GL_DYNAMIC_COPY);
-  check_gl("stream bandwidth: source buffer");
+  allocate_storage_buffer(objects.buffers[0], options.bytes, nullptr, "stream bandwidth: source buffer");
   for (std::size_t at = 0; at < count; at += pattern.size() / 4) {
     const std::size_t n = std::min(pattern.size() / 4, count - at);
     glBufferSubData(GL_SHADER_STORAGE_BUFFER, static_cast<GLintptr>(16 * at), static_cast<GLsizeiptr>(16 * n),
                     pattern.data());
   }
-  glBindBuffer(GL_SHADER_STORAGE_BUFFER, objects.buffers[1]);
-  glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(options.bytes), nullptr, GL_DYNAMIC_COPY);
+  allocate_storage_buffer(objects.buffers[1], options.bytes, nullptr, "stream bandwidth: destination buffer");
   const float minus_one = -1.0f;
   glClearBufferData(GL_SHADER_STORAGE_BUFFER, GL_R32F, GL_RED, GL_FLOAT, &minus_one);
   check_gl("stream bandwidth: destination buffer");
@@ -75,7 +72,7 @@ StreamBandwidth measure_stream_bandwidth(const GlContext& context, const StreamB
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, objects.buffers[1]);
   auto copies = [&](int k) {
     for (int i = 0; i < k; ++i) {
-      glDispatchCompute(groups, 1, 1);
+      glDispatchCompute(columns, rows, 1);
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
     glFinish();

@@ -14,10 +14,10 @@ namespace fascicle::shaders {
 
 /// Options of measure_stream_bandwidth.
 struct StreamBandwidthOptions {
-  std::size_t bytes = std::size_t(256) << 20;  ///< size of each of the two buffers (default 256 MiB)
+  std::size_t bytes = std::size_t(256) << 20;  ///< size of each of the two buffers, a multiple of 16,
+                                               ///< at most 64 GiB (default 256 MiB)
   int repetitions = 5;      ///< timed repetitions, the best is kept (default 5)
   double min_seconds = 0.05;  ///< each repetition doubles its dispatches until it takes this long (default 0.05 s)
-  int groups = 0;           ///< work groups of 256 invocations; 0 = enough for one vec4 each, at most 65535 (default 0)
   /// Throws OptionError naming the bad field.
   void validate() const;
 };

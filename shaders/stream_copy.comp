@@ -1,7 +1,8 @@
 #version 430
-// The GPU stream probe (stream_bandwidth.h): every invocation copies vec4s from src to dst in a
-// grid-stride loop, so each byte is read once and written once; the time of a dispatch gives
-// the memory bandwidth a streaming kernel can reach on this device.
+// The GPU stream probe (stream_bandwidth.h): every invocation copies one vec4 from src to dst (a
+// two-dimensional grid of work groups covers the buffer), so each byte is read once and written
+// once; the time of a dispatch gives the memory bandwidth a streaming kernel reaches on this
+// device.
 layout(local_size_x = 256) in;
 
 layout(std430, binding = 0) readonly buffer Source { vec4 src[]; };
@@ -10,6 +11,7 @@ layout(std430, binding = 1) writeonly buffer Destination { vec4 dst[]; };
 uniform uint u_count;  // vec4s to copy
 
 void main() {
-  const uint stride = gl_NumWorkGroups.x * 256u;
-  for (uint i = gl_GlobalInvocationID.x; i < u_count; i += stride) dst[i] = src[i];
+  const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  const uint i = group * 256u + gl_LocalInvocationIndex;
+  if (i < u_count) dst[i] = src[i];
 }
