@@ -34,6 +34,8 @@ const char* gpu_backend_name(GpuBackend backend) { return backend == GpuBackend:
 void GpuSettleOptions::validate() const {
   if (check_interval < 1) throw OptionError("check_interval: must be >= 1, got " + std::to_string(check_interval));
   if (stall_checks < 1) throw OptionError("stall_checks: must be >= 1, got " + std::to_string(stall_checks));
+  if (!(stall_motion >= 0.0) || !std::isfinite(stall_motion))
+    throw OptionError("stall_motion: must be a finite number >= 0, got " + std::to_string(stall_motion));
   if (texture_width < 1 || texture_width > 16384)
     throw OptionError("texture_width: must be in 1..16384, got " + std::to_string(texture_width));
 }
@@ -747,6 +749,30 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   const double initial_energy = std::max(solver->energy(), springs::detail::energy_floor(system));
   if (!std::isfinite(initial_energy)) diverged(0, NAN, initial_energy);
   const bool run_all = options.tolerance == 0.0;
+  // The stall rule's motion floor: a share of the mean rest length, at least 64 float32
+  // roundings of the half-extent (positions on the GPU are relative to the box centre).
+  double motion_floor = 0.0;
+  {
+    double rest = 0.0;
+    for (const Spring& spring : system.springs) rest += spring.rest;
+    if (!system.springs.empty()) rest /= static_cast<double>(system.springs.size());
+    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::max()), hi = -lo;
+    for (const Vec3& p : system.positions) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    const double half_extent = system.positions.empty() ? 0.0 : 0.5 * (hi - lo).norm();
+    motion_floor = std::max(gpu_options.stall_motion * rest,
+                            64.0 * std::numeric_limits<float>::epsilon() * half_extent);
+  }
+  // Largest move of a free point between two readbacks.
+  auto largest_move = [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+    double move = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      if (!system.fixed[i]) move = std::max(move, (a[i] - b[i]).norm());
+    return move;
+  };
+  std::vector<Vec3> suspected;  // positions when a stall was suspected, empty when none is
   if (run_all || residual > options.tolerance) {
     double best = residual;
     int without_progress = 0;
@@ -768,12 +794,24 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       if (!std::isfinite(residual)) break;
       if (run_all) continue;
       if (residual <= options.tolerance) break;
+      // No new minimum for stall_checks checks: float32 rounding may dominate the forces, or the
+      // lattice is swinging. The positions are read back halfway through such a run of checks
+      // and at its end; the solve stops only if no free point moved more than the floor between.
+      const int half = gpu_options.stall_checks / 2;
       if (residual < 0.99 * best) {
         best = residual;
         without_progress = 0;
-      } else if (++without_progress >= gpu_options.stall_checks) {
-        report.stalled = true;  // float32 rounding dominates the forces: further steps change nothing
-        break;
+        suspected.clear();
+      } else if (++without_progress == half && half < gpu_options.stall_checks) {
+        suspected = read_positions(*solver, false).positions;
+      } else if (without_progress >= gpu_options.stall_checks) {
+        std::vector<Vec3> now = read_positions(*solver, false).positions;
+        if (!suspected.empty() && largest_move(now, suspected) <= motion_floor) {
+          report.stalled = true;  // float32 rounding dominates the forces: further steps change nothing
+          break;
+        }
+        suspected = std::move(now);  // still moving: judge again after another stall_checks - half checks
+        without_progress = half;
       }
     }
   }

@@ -59,10 +59,17 @@ struct GpuSettleOptions {
   bool pbo_readback = true; ///< gl-gs: read the positions back through a pixel buffer object
                             ///< (default true: the thesis measured it 25 % faster)
   int texture_width = 2048; ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
-  int stall_checks = 16;    ///< stop when this many residual checks in a row bring no new minimum
-                            ///< below 0.99 of the best so far: float32 has reached its attainable
-                            ///< accuracy (about 1e-5 relative on template lattices), >= 1
-                            ///< (default 16)
+  int stall_checks = 16;    ///< a stall is suspected when this many residual checks in a row bring
+                            ///< no new minimum below 0.99 of the best so far (float32 may have
+                            ///< reached its attainable accuracy, about 1e-5 relative on template
+                            ///< lattices), >= 1 (default 16)
+  double stall_motion = 1e-4;  ///< and confirmed, stopping the solve, only when over the second
+                               ///< half of those checks no free point moved more than this share of
+                               ///< the mean spring rest length (nor more than 64 float32 roundings
+                               ///< of the lattice's extent): a Verlet residual rises for thousands
+                               ///< of iterations while a slow mode swings, with the points moving
+                               ///< (a few % of a spacing per 512 iterations on a 10^3 lattice);
+                               ///< >= 0 (default 1e-4)
   /// Throws OptionError naming the bad field.
   void validate() const;
 };
