@@ -152,10 +152,13 @@ struct BackendChoice {
   std::string reason;   ///< one line for the log and the report
 };
 
-/// Points from which `auto` moves a Verlet settle to a hardware GPU. 50^3: below it the work of
-/// an iteration is too small to hide the launch and synchronisation costs. A choice, not a
-/// measurement: no hardware GPU was available when this was written (docs/BENCHMARKS.md).
-constexpr std::size_t kAutoGpuMinPoints = 125000;
+/// Points from which `auto` moves a Verlet settle to a hardware GPU: 8000 (20^3). Measured on
+/// an NVIDIA H200 against the 16 cores of its host (docs/BENCHMARKS.md, "GPU settle on an
+/// NVIDIA H200"), whole `fascicle settle` runs of n^3 model-6 lattices to relative residual
+/// 1e-4, wall seconds cpu / gl: 10^3 0.127 / 0.487, 15^3 0.112 / 0.149, 20^3 0.439 / 0.249,
+/// 40^3 2.40 / 0.42 (one run each). Below it the context and the per-check synchronisation cost
+/// more than the iterations save. A slower host CPU moves the crossing down, not up.
+constexpr std::size_t kAutoGpuMinPoints = 8000;
 
 /// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with
 /// `solver`: auto takes `gl` only for the Verlet solver, at least `min_gpu_points` points and a
