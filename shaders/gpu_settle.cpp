@@ -802,7 +802,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
         best = residual;
         without_progress = 0;
         suspected.clear();
-      } else if (++without_progress == half && half < gpu_options.stall_checks) {
+      } else if (++without_progress == half) {  // never for stall_checks 1 (half 0)
         suspected = read_positions(*solver, false).positions;
       } else if (without_progress >= gpu_options.stall_checks) {
         std::vector<Vec3> now = read_positions(*solver, false).positions;

@@ -31,7 +31,7 @@ struct StreamBandwidth {
 };
 
 /// Measures the stream bandwidth on `context` (made current). The copy is checked: the
-/// destination read back must equal the source, else GpuError. Throws GpuError on GL errors (a
+/// destination's first and last 4096 vec4s read back must equal the source's, else GpuError. Throws GpuError on GL errors (a
 /// buffer the device cannot allocate), OptionError for bad options.
 StreamBandwidth measure_stream_bandwidth(const GlContext& context, const StreamBandwidthOptions& options = {});
 
