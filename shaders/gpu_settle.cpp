@@ -4,6 +4,7 @@
 #include "shaders/gpu_settle.h"
 
 #include "geometry/errors.h"
+#include "geometry/mesh_stats.h"
 #include "springs/solvers_internal.h"
 
 #include <GL/glew.h>
@@ -114,13 +115,7 @@ void storage(const Buffer& buffer, std::size_t bytes, const void* data, const ch
 // then relative to the lattice's extent, not to its distance from the origin (CT coordinates are
 // often hundreds of millimetres from it while springs are about one millimetre long).
 Vec3 bounding_box_centre(const SpringSystem& system) {
-  if (system.positions.empty()) return Vec3::Zero();
-  Vec3 lo = system.positions[0], hi = system.positions[0];
-  for (const Vec3& p : system.positions) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  return 0.5 * (lo + hi);
+  return system.positions.empty() ? Vec3::Zero() : bounding_box(system.positions).center();
 }
 
 // Host copies of the shared per-point data, float32, relative to `centre`; w = 1 marks fixed.
@@ -756,12 +751,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     double rest = 0.0;
     for (const Spring& spring : system.springs) rest += spring.rest;
     if (!system.springs.empty()) rest /= static_cast<double>(system.springs.size());
-    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::max()), hi = -lo;
-    for (const Vec3& p : system.positions) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
-    const double half_extent = system.positions.empty() ? 0.0 : 0.5 * (hi - lo).norm();
+    const double half_extent = 0.5 * bounding_box(system.positions).diagonal();
     motion_floor = std::max(gpu_options.stall_motion * rest,
                             64.0 * std::numeric_limits<float>::epsilon() * half_extent);
   }
