@@ -335,7 +335,8 @@ void add_batch_command(CLI::App& app) {
                            "--even-perimeter", "--retry", "--retry-max-inverted", "--landmark-strip",
                            "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius",
                            "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-retry",
-                           "--end-fraction", "--placement-end-share", "--end-share-retry"}) {
+                           "--end-fraction", "--connected-ends", "--connect-margin", "--max-end-fraction",
+                           "--placement-end-share", "--end-share-retry"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

@@ -133,9 +133,7 @@ void add_check_command(CLI::App& app) {
   cmd->add_option("--strip-max-gap", args->strip.max_gap,
                   "Longest join of landmark points into a strip, as a fraction of the muscle length")
       ->capture_default_str();
-  cmd->add_option("--end-fraction", args->attachments.end_fraction,
-                  "Automatic areas: share of the length taken at each end")
-      ->capture_default_str();
+  add_automatic_area_options(cmd, args->attachments);
   cmd->callback([args] { run_check(*args); });
 }
 

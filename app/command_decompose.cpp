@@ -137,8 +137,7 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--max-landmark-distance", o.attachments.max_landmark_distance,
                   "Landmarks farther from the surface than this fraction of the diagonal are an error")
       ->capture_default_str();
-  cmd->add_option("--end-fraction", o.attachments.end_fraction, "Automatic areas: share of the length at each end")
-      ->capture_default_str();
+  add_automatic_area_options(cmd, o.attachments);
   cmd->add_option("--placement-end-share", o.placement_end_share,
                   "Automatic areas: the fibre ends are placed on this share of each --end-fraction area (the check "
                   "keeps the whole areas)")

@@ -189,9 +189,7 @@ void add_sphere_command(CLI::App& app) {
   cmd->add_option("--max-landmark-distance", args->attachments.max_landmark_distance,
                   "Landmarks farther from the surface than this fraction of the diagonal are an error")
       ->capture_default_str();
-  cmd->add_option("--end-fraction", args->attachments.end_fraction,
-                  "Automatic areas: share of the length taken at each end")
-      ->capture_default_str();
+  add_automatic_area_options(cmd, args->attachments);
   cmd->add_option("--balance-sweeps", args->options.balance_sweeps, "Area-balancing sweeps (tutte)")
       ->capture_default_str();
   cmd->add_option("--reweight-rounds", args->options.reweight_rounds, "Tutte reweighting rounds (tutte)")

@@ -5,7 +5,15 @@
 
 #include <CLI/CLI.hpp>
 
+namespace fascicle {
+struct AttachmentOptions;
+}
+
 namespace fascicle::app {
+
+/// The automatic attachment areas' options (--end-fraction, --connected-ends, --connect-margin,
+/// --max-end-fraction), one definition for decompose, check and sphere.
+void add_automatic_area_options(CLI::App* cmd, AttachmentOptions& options);
 
 void add_sample_command(CLI::App& app);   // fascicle sample
 void add_repair_command(CLI::App& app);   // fascicle repair

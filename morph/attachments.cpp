@@ -4,7 +4,9 @@
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <numeric>
 
 namespace fascicle {
 namespace {
@@ -15,6 +17,76 @@ std::string number(double value) {
   return buffer;
 }
 
+// Each vertex's neighbours over the triangles' edges, in compressed rows (an edge may be listed
+// twice; harmless for connectivity).
+struct VertexNeighbours {
+  std::vector<int> start, list;
+  explicit VertexNeighbours(const TriangleMesh& mesh) : start(mesh.positions.size() + 1, 0) {
+    for (const Triangle& t : mesh.triangles)
+      for (int k = 0; k < 3; ++k) start[t[k] + 1] += 2;
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    list.resize(start.back());
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (const Triangle& t : mesh.triangles)
+      for (int k = 0; k < 3; ++k) {
+        list[fill[t[k]]++] = t[(k + 1) % 3];
+        list[fill[t[k]]++] = t[(k + 2) % 3];
+      }
+  }
+};
+
+struct EndBand {
+  double threshold;  // the band is every vertex with `along` on the end's side of this value
+  int pieces;        // connected pieces of the band at the requested fraction
+};
+
+// The band at one end (`upper`: along >= threshold, else along <= threshold), starting at
+// `threshold` and, when `connect` and it is several pieces, widened vertex by vertex (nearest
+// the end first) until it is one connected piece (then by `margin` more, within `limit`) or
+// reaches `limit`. Union-find over the vertices added so far.
+EndBand end_band(const std::vector<double>& along, const std::vector<char>& used, const VertexNeighbours& nb,
+                 bool upper, double threshold, double limit, bool connect, double margin) {
+  auto inside = [&](double a, double t) { return upper ? a >= t : a <= t; };
+  std::vector<int> parent(along.size(), -1);  // -1: not in the band yet
+  auto find = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  int pieces = 0;
+  auto add = [&](int v) {
+    parent[v] = v;
+    ++pieces;
+    for (int i = nb.start[v]; i < nb.start[v + 1]; ++i) {
+      const int w = nb.list[i];
+      if (parent[w] < 0) continue;
+      const int a = find(v), b = find(w);
+      if (a != b) {
+        parent[a] = b;
+        --pieces;
+      }
+    }
+  };
+  for (std::size_t v = 0; v < along.size(); ++v)
+    if (used[v] && inside(along[v], threshold)) add(static_cast<int>(v));
+  EndBand out{threshold, pieces};
+  if (!connect || pieces <= 1) return out;
+  // Widen, nearest the end first, by whole groups of equal `along`, so that the band is exactly
+  // what its threshold selects.
+  std::vector<int> order;
+  for (std::size_t v = 0; v < along.size(); ++v)
+    if (used[v] && parent[v] < 0 && inside(along[v], limit)) order.push_back(static_cast<int>(v));
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return upper ? along[a] > along[b] : along[a] < along[b]; });
+  for (std::size_t next = 0; next < order.size();) {
+    const double value = along[order[next]];
+    while (next < order.size() && along[order[next]] == value) add(order[next++]);
+    if (pieces == 1) {
+      out.threshold = upper ? std::max(value - margin, limit) : std::min(value + margin, limit);
+      return out;
+    }
+  }
+  return out;  // not connected within the limit: the requested band
+}
+
 }  // namespace
 
 void AttachmentOptions::validate() const {
@@ -23,6 +95,11 @@ void AttachmentOptions::validate() const {
                       ": must be > 0");
   if (!(end_fraction > 0.0 && end_fraction < 0.5))
     throw OptionError("attachment option end_fraction = " + std::to_string(end_fraction) + ": must be in (0, 0.5)");
+  if (!(connect_margin >= 0.0))
+    throw OptionError("attachment option connect_margin = " + std::to_string(connect_margin) + ": must be >= 0");
+  if (!(max_end_fraction >= end_fraction && max_end_fraction < 0.5))
+    throw OptionError("attachment option max_end_fraction = " + std::to_string(max_end_fraction) +
+                      ": must be in [end_fraction, 0.5)");
 }
 
 Vec3 AttachmentArea::centroid() const {
@@ -83,7 +160,8 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
     lo = std::min(lo, along[v]);
     hi = std::max(hi, along[v]);
   }
-  const double band = options.end_fraction * (hi - lo);
+  const double extent = hi - lo;
+  const double band = options.end_fraction * extent;
   // One face and corner per vertex, to express vertices as surface points.
   std::vector<int> face_of(nv, -1), corner_of(nv, 0);
   for (std::size_t f = 0; f < mesh.triangles.size(); ++f)
@@ -94,9 +172,22 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
         corner_of[v] = k;
       }
     }
+  std::vector<char> used(nv);
+  for (std::size_t v = 0; v < nv; ++v) used[v] = face_of[v] >= 0;
+  const VertexNeighbours neighbours(mesh);
+  const double widest = options.max_end_fraction * extent;
+  const double margin = options.connect_margin * extent;
+  const EndBand upper =
+      end_band(along, used, neighbours, true, hi - band, hi - widest, options.connected_ends, margin);
+  const EndBand lower =
+      end_band(along, used, neighbours, false, lo + band, lo + widest, options.connected_ends, margin);
   Attachments out;
   out.automatic = true;
   out.origin.source = out.insertion.source = "automatic";
+  out.origin.end_fraction = extent > 0.0 ? (hi - upper.threshold) / extent : options.end_fraction;
+  out.insertion.end_fraction = extent > 0.0 ? (lower.threshold - lo) / extent : options.end_fraction;
+  out.origin.end_pieces = upper.pieces;
+  out.insertion.end_pieces = lower.pieces;
   for (std::size_t v = 0; v < nv; ++v) {
     if (face_of[v] < 0) continue;
     SurfacePoint p;
@@ -104,8 +195,8 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
     p.barycentric = Vec3::Zero();
     p.barycentric[corner_of[v]] = 1.0;
     p.position = mesh.positions[v];
-    if (along[v] >= hi - band) out.origin.points.push_back(p);
-    if (along[v] <= lo + band) out.insertion.points.push_back(p);
+    if (along[v] >= upper.threshold) out.origin.points.push_back(p);
+    if (along[v] <= lower.threshold) out.insertion.points.push_back(p);
   }
   return out;
 }

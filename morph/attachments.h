@@ -22,6 +22,22 @@ struct AttachmentOptions {
   /// Automatic areas: the share of the muscle's extent along its principal direction taken at
   /// each end (default 0.1).
   double end_fraction = 0.1;
+  /// Automatic areas: where an end's band of end_fraction falls apart into several pieces of
+  /// surface (a muscle with two heads at that end, or a bump), widen that end's band just enough
+  /// that it is one connected piece (over the mesh's edges), at most to max_end_fraction; an end
+  /// that is not connected even then keeps end_fraction (default true). Why: the opendihu left
+  /// biceps brachii's two heads are two separate pieces of its upper band at 0.1 (one at 0.16);
+  /// with the origin on both, the fibres start in both heads instead of crossing from one
+  /// (docs/BENCHMARKS.md, "Decompose", seventeenth session).
+  bool connected_ends = true;
+  /// The widest band connected_ends may take at an end, as a share of the extent, in
+  /// [end_fraction, 0.5) (default 0.3).
+  double max_end_fraction = 0.3;
+  /// A band widened by connected_ends is widened by this share of the extent more (still at most
+  /// max_end_fraction), so that the piece joining the heads is not a thin neck, >= 0 (default
+  /// 0.02; left biceps, inverted cells with margins 0 / 0.01 / 0.02 / 0.03 / 0.04 / 0.05 / 0.1:
+  /// 11 / 0 / 0 / 1 / 1 / 0 / 2, docs/BENCHMARKS.md, "Decompose", seventeenth session).
+  double connect_margin = 0.02;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
@@ -31,6 +47,11 @@ struct AttachmentArea {
   std::string source;                 ///< file name, or "automatic"
   std::vector<SurfacePoint> points;   ///< on the muscle surface (face, barycentric, position)
   double max_distance = 0.0;          ///< largest landmark-to-surface distance, mesh units
+  /// Automatic areas: the share of the extent the area's band takes (end_fraction, or wider where
+  /// AttachmentOptions::connected_ends joined its pieces), and how many connected pieces the
+  /// band of end_fraction had (1 for a simple end). 0 for landmark areas.
+  double end_fraction = 0.0;
+  int end_pieces = 0;
   /// Mean position of the points on the surface (mesh units).
   Vec3 centroid() const;
 };
@@ -53,7 +74,8 @@ AttachmentArea project_landmarks(const SurfaceQuery& query, double diagonal, con
 /// (largest eigenvector of their covariance) is oriented so that its z component is >= 0 (the
 /// proximal end is up in scanner coordinates, and the origin of a limb muscle is proximal); the
 /// origin is every vertex within options.end_fraction of the extent from the upper end, the
-/// insertion every vertex within it from the lower end. A sensible default for fusiform and
+/// insertion every vertex within it from the lower end; an end whose band is not one connected
+/// piece of surface is widened (options.connected_ends). A sensible default for fusiform and
 /// strap muscles; for fan-shaped muscles give landmarks. Throws TopologyError for an empty mesh.
 Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOptions& options = {});
 

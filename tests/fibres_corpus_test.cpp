@@ -20,7 +20,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   const int code = test::run_command(test::program() + " -q batch " + muscles + " -o " + dir.path().string() +
                                      " --jobs 2 --keep-failed 2>/dev/null");
   CHECK((code == 0 || code == 19));
-  int reports = 0, passed = 0, unfolded = 0, covered = 0;
+  int reports = 0, passed = 0, unfolded = 0, covered = 0, widened = 0;
   long inverted = 0;
   std::set<std::string> refused;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir.path())) {
@@ -39,6 +39,24 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     }
     const auto& q = r["quality"];
     CHECK(q["fibres"].get<long>() == 100);
+    // Automatic areas: an end whose band of 0.1 is one piece keeps 0.1; one of several pieces
+    // (two heads) is widened until it is one, plus 0.02 (AttachmentOptions::connected_ends).
+    for (const char* end : {"origin", "insertion"}) {
+      const auto& area = r["attachments"][end];
+      const double share = r["attachments"]["placement_end_share"].get<double>();
+      REQUIRE(area.contains("end_pieces"));
+      if (area["end_pieces"].get<int>() == 1) CHECK(area["end_fraction"].get<double>() == Approx(0.1 * share));
+      else {
+        CHECK(area["end_fraction"].get<double>() > 0.1 * share + 0.02 - 1e-9);
+        CHECK(area["end_fraction"].get<double>() <= 0.3 + 1e-9);
+        ++widened;
+      }
+    }
+    // The opendihu left biceps brachii: two heads at the upper end, both inside its origin.
+    if (entry.path().filename() == "left_biceps_brachii.report.json") {
+      CHECK(r["attachments"]["origin"]["end_pieces"] == 2);
+      CHECK(r["attachments"]["origin"]["end_fraction"].get<double>() > 0.12);
+    }
     CHECK(q["inside_fraction"].get<double>() == 1.0);
     CHECK(q["attachment"]["origin_max"].get<double>() <= 0.02);
     CHECK(q["attachment"]["insertion_max"].get<double>() <= 0.02);
@@ -84,7 +102,16 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Floors, not the goal (every muscle). Fifteenth session, 2026-11-27 (docs/BENCHMARKS.md,
+  // Widened ends (seventeenth session, 2026-11-27: the opendihu left biceps, biceps tracer and
+  // left triceps, LHDL iliacus, VHM left vastus intermedius; the wrap of the opendihu muscles can
+  // depend on the machine's load, README).
+  CHECK(widened >= 2);
+  // Floors, not the goal (every muscle). Seventeenth session, 2026-11-27 (docs/BENCHMARKS.md,
+  // "Decompose", "Seventeenth session"), automatic ends widened to one piece: 47 of 47 pass, 47
+  // have no inverted cell, 47 have coverage p95 <= 2 (the highest: VHM left vastus intermedius
+  // 1.978, LHDL psoas 1.977). The floors keep room for one muscle: the untangling's attempts are
+  // sensitive to round-off, and the left biceps swung between 0 and 11 inverted cells with the
+  // widening's margin (morph/attachments.h). Fifteenth session, 2026-11-27 (docs/BENCHMARKS.md,
   // "Decompose", "Fifteenth session"), with the end-share retry: 46 of 47 pass, 46 have no inverted
   // cell, 47 have coverage p95 <= 2, 14 inverted cells in all (the opendihu left biceps; the LHDL
   // psoas passes on its end-share retry). Tenth session, 2026-11-22 14:05-14:16 UTC (docs/BENCHMARKS.md,
@@ -117,8 +144,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // session's figures (two for coverage) and the total about 25 % above its 156: libm's
   // processor-specific variants (glibc picks FMA versions of some functions at run time) may still
   // round differently elsewhere, and the untangling's attempts are sensitive to round-off.
-  CHECK(passed >= 45);
-  CHECK(unfolded >= 45);
-  CHECK(covered >= 45);
-  CHECK(inverted <= 60);
+  CHECK(passed >= 46);
+  CHECK(unfolded >= 46);
+  CHECK(covered >= 46);
+  CHECK(inverted <= 40);
 }
