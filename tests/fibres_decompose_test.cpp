@@ -12,6 +12,7 @@
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -512,6 +513,10 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --contact-depth-min 0.5 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
+  for (const char* bad : {" --connect-margin -0.1", " --max-end-fraction 0.6", " --max-end-fraction 0.05"}) {
+    CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + bad + " 2>/dev/null") == 18);
+    CHECK_FALSE(std::filesystem::exists(out));
+  }
   CHECK(test::run_command(fascicle + " decompose " + (dir.path() / "missing.off").string() + " -o " + out +
                           " 2>/dev/null") == 3);
   CHECK_FALSE(std::filesystem::exists(out));
@@ -533,6 +538,13 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK(std::filesystem::exists(report));
   const Polylines back = read_polylines(out);
   CHECK(back.lines.size() == 100);
+  // The capsule's automatic ends are one piece each: the requested share, reported.
+  std::ifstream in(report);
+  const nlohmann::json r = nlohmann::json::parse(in);
+  for (const char* end : {"origin", "insertion"}) {
+    CHECK(r["attachments"][end]["end_pieces"] == 1);
+    CHECK(r["attachments"][end]["end_fraction"].get<double>() == Approx(0.1));
+  }
 }
 
 TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resumable", "[fibres][cli][batch]") {
