@@ -87,7 +87,9 @@ void run_check(const CheckArgs& args) {
   json["areas"] = {{"origin", areas.origin.source},
                    {"insertion", areas.insertion.source},
                    {"automatic", areas.automatic},
-                   {"landmark_strip", strips}};
+                   {"landmark_strip", strips},
+                   {"origin_area", areas.origin.to_json()},
+                   {"insertion_area", areas.insertion.to_json()}};
   if (!strip_report.is_null()) json["areas"]["strip"] = strip_report;
   if (!args.report.empty()) write_json_report(args.report, json);
   if (args.json) {

@@ -40,11 +40,11 @@ struct SphereArgs {
 nlohmann::json area_json(const AttachmentArea& area, const SphereMap& map, const TriangleMesh& mesh) {
   const Vec3 c = sphere_centre(area, map.positions, mesh.triangles);
   const Vec3 s = area.centroid();
-  return {{"source", area.source},
-          {"points", area.points.size()},
-          {"max_landmark_distance", area.max_distance},
-          {"surface_centroid", {s.x(), s.y(), s.z()}},
-          {"sphere_centre", {c.x(), c.y(), c.z()}}};
+  nlohmann::json j = area.to_json();
+  j["max_landmark_distance"] = area.max_distance;  // the name before the shared fields (kept for readers)
+  j["surface_centroid"] = {s.x(), s.y(), s.z()};
+  j["sphere_centre"] = {c.x(), c.y(), c.z()};
+  return j;
 }
 
 #if FASCICLE_HAVE_SPRINGS

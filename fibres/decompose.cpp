@@ -483,17 +483,6 @@ PreparedLattice prepare_lattice(const DecomposeOptions& options) {
   return out;
 }
 
-// An attachment area in the report: where it came from and its size (automatic areas: the
-// share of the length its band took and the pieces the requested band had).
-nlohmann::json area_json(const AttachmentArea& area) {
-  nlohmann::json j = {{"source", area.source}, {"points", area.points.size()}, {"max_distance", area.max_distance}};
-  if (area.end_pieces > 0) {
-    j["end_fraction"] = area.end_fraction;
-    j["end_pieces"] = area.end_pieces;
-  }
-  return j;
-}
-
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
 // `query`, `sphere` and `prepared` are made once for all attempts.
 Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
@@ -524,8 +513,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   const Attachments& checked_against = shared ? whole_areas : areas;
   report.attachments = {{"automatic", areas.automatic},
                         {"placement_end_share", landmarks.given() ? 1.0 : options.placement_end_share},
-                        {"origin", area_json(areas.origin)},
-                        {"insertion", area_json(areas.insertion)}};
+                        {"origin", areas.origin.to_json()},
+                        {"insertion", areas.insertion.to_json()}};
   if (!strip.is_null()) report.attachments["strip"] = strip;
 
   // Sphere map of the muscle (made before the attempts).

@@ -4,6 +4,8 @@
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cstdio>
 #include <numeric>
@@ -106,6 +108,15 @@ Vec3 AttachmentArea::centroid() const {
   Vec3 sum = Vec3::Zero();
   for (const SurfacePoint& p : points) sum += p.position;
   return points.empty() ? sum : Vec3(sum / static_cast<double>(points.size()));
+}
+
+nlohmann::json AttachmentArea::to_json() const {
+  nlohmann::json j = {{"source", source}, {"points", points.size()}, {"max_distance", max_distance}};
+  if (end_pieces > 0) {
+    j["end_fraction"] = end_fraction;
+    j["end_pieces"] = end_pieces;
+  }
+  return j;
 }
 
 AttachmentArea project_landmarks(const SurfaceQuery& query, double diagonal, const std::vector<Vec3>& landmarks,

@@ -7,6 +7,8 @@
 #include "geometry/mesh.h"
 #include "morph/surface_query.h"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <string>
 #include <vector>
 
@@ -54,6 +56,9 @@ struct AttachmentArea {
   int end_pieces = 0;
   /// Mean position of the points on the surface (mesh units).
   Vec3 centroid() const;
+  /// For reports: source, points (the count), max_distance and, for automatic areas,
+  /// end_fraction and end_pieces.
+  nlohmann::json to_json() const;
 };
 
 /// Origin and insertion areas.
