@@ -22,10 +22,13 @@ TEST_CASE("a biceps's bent ends: the untangling with the surface ring free leave
   const nlohmann::json without = decompose_report(muscle, without_dir.path().string(), "--untangle-free-ring false");
   INFO("with: " << with["untangle"]["kept"] << " " << with["quality"].dump());
   INFO("without: " << without["untangle"]["kept"] << " " << without["quality"].dump());
-  // The attempts with the ring held leave cells folded: the kept attempt is a free-ring one.
+  // The attempts with the ring held leave cells folded: the kept attempt is a free-ring one
+  // ("free_ring", "free_ring_then_held_ends", or their retry with the other containment setting,
+  // "free_ring_contained..." / "free_ring_uncontained...": "free_ring_contained" is the kept one
+  // since the tracer's origin, two heads, is widened to one piece, 2026-11-27).
   CHECK(without["quality"]["inverted_cells"].get<long>() > 0);
   const std::string kept = with["untangle"]["kept"].get<std::string>();
-  CHECK((kept == "free_ring" || kept == "free_ring_then_held_ends"));
+  CHECK(kept.rfind("free_ring", 0) == 0);
   CHECK(with["quality"]["inverted_cells"].get<long>() == 0);
   CHECK(with["status"] == "ok");
   CHECK(with["quality"]["inside_fraction"].get<double>() == 1.0);
