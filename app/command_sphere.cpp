@@ -41,7 +41,7 @@ nlohmann::json area_json(const AttachmentArea& area, const SphereMap& map, const
   const Vec3 c = sphere_centre(area, map.positions, mesh.triangles);
   const Vec3 s = area.centroid();
   nlohmann::json j = area.to_json();
-  j["max_landmark_distance"] = area.max_distance;  // the name before the shared fields (kept for readers)
+  j["max_landmark_distance"] = area.max_distance;  // this report's older name for max_distance, kept for readers
   j["surface_centroid"] = {s.x(), s.y(), s.z()};
   j["sphere_centre"] = {c.x(), c.y(), c.z()};
   return j;

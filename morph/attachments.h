@@ -29,8 +29,10 @@ struct AttachmentOptions {
   /// that it is one connected piece (over the mesh's edges), at most to max_end_fraction; an end
   /// that is not connected even then keeps end_fraction (default true). Why: the opendihu left
   /// biceps brachii's two heads are two separate pieces of its upper band at 0.1 (one at 0.16);
-  /// with the origin on both, the fibres start in both heads instead of crossing from one
-  /// (docs/BENCHMARKS.md, "Decompose", seventeenth session).
+  /// with the origin on one head's tip the lattice ran through that head and left the other
+  /// empty (14 folded cells); with the band widened past the fork the fibres start where the
+  /// heads join the belly, none inside either head's tendon (docs/BENCHMARKS.md, "Decompose",
+  /// seventeenth session).
   bool connected_ends = true;
   /// The widest band connected_ends may take at an end, as a share of the extent, in
   /// [end_fraction, 0.5) (default 0.3).
