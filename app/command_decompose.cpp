@@ -164,6 +164,10 @@ void add_decompose_command(CLI::App& app) {
                   "Spring rest lengths: tension (template, stretched, all springs start in tension), template "
                   "(stretched), zero (harmonic map)")
       ->capture_default_str();
+  cmd->add_option("--harmonic-direct-points", o.harmonic_direct_points,
+                  "The first (harmonic) settle is one sparse Cholesky solve on lattices of at most this many points, "
+                  "a multigrid solve on larger ones (0: always multigrid)")
+      ->capture_default_str();
   cmd->add_option("--max-face-depth", o.placement.max_face_depth,
                   "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
       ->capture_default_str();

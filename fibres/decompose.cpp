@@ -404,6 +404,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("placement_end_share: must be in (0, 1], got " + std::to_string(placement_end_share));
   if (!(end_share_retry == 0.0 || (end_share_retry > 0.0 && end_share_retry < 1.0)))
     throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
+  if (harmonic_direct_points < 0)
+    throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
 }
 
 nlohmann::json DecomposeReport::to_json() const {
@@ -477,6 +479,7 @@ PreparedLattice prepare_lattice(const DecomposeOptions& options) {
   PreparedLattice out;
   out.options = lattice_options_of(options);
   out.lattice = springs::build_lattice(out.options);
+  if (static_cast<long>(out.lattice.point_count()) > options.harmonic_direct_points) return out;  // multigrid
   const auto start = Clock::now();
   out.harmonic = springs::factor_spring_matrix(out.lattice.system);  // the rest lengths play no part
   out.factor_seconds = since(start);
@@ -559,13 +562,22 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     springs::SettleOptions linear;
     linear.solver = springs::SolverKind::static_equilibrium;
     linear.portable_loop = options.settle.portable_loop;
-    linear.static_method = springs::StaticMethod::local_global;
-    linear.acceleration = springs::Acceleration::none;
     linear.tolerance = 1e-12;
-    linear.max_iterations = 4;
-    const springs::SettleReport first = springs::settle(harmonic, linear, nullptr, prepared.harmonic);
+    if (prepared.harmonic) {
+      // One solve with the matrix factorized beside the sphere map, before the attempt.
+      linear.static_method = springs::StaticMethod::local_global;
+      linear.acceleration = springs::Acceleration::none;
+      linear.max_iterations = 4;
+    } else {
+      // V-cycles to the harmonic start, then V-cycle-preconditioned steps: the energy is
+      // quadratic with the multigrid's own Laplacian as its Hessian.
+      linear.static_method = springs::StaticMethod::multigrid;
+      linear.multigrid_harmonic_start = true;
+      linear.max_iterations = 200;
+    }
+    const springs::SettleReport first =
+        springs::settle(harmonic, linear, prepared.harmonic ? nullptr : &shape, prepared.harmonic);
     report.settle["harmonic"] = settle_json(first);
-    // Its matrix was factorized beside the sphere map, before the attempt.
     report.settle["harmonic"]["factor_seconds"] = prepared.factor_seconds;
     system.positions = harmonic.positions;
   }

@@ -77,6 +77,13 @@ struct DecomposeOptions {
   int resolution = 15;              ///< points per fibre, >= 2 (default 15)
   springs::SpringModel model = springs::SpringModel::model6;  ///< springs (default model-6)
   RestShape rest = RestShape::tension;  ///< spring rest lengths in the settle (default tension)
+  /// The first settle (zero rest lengths: the harmonic interpolation of the placed surface) is
+  /// one sparse Cholesky solve on lattices of at most this many points, and a geometric-multigrid
+  /// solve (springs/multigrid.h) on larger ones, >= 0 (default 8192). The factor's fill grows
+  /// about as the square of a 3D lattice's points: 4 ms at the default 2160 points, 4.1 s at
+  /// 1000 fibres x 30 points (34 020), while the multigrid's cost grows linearly
+  /// (docs/BENCHMARKS.md, "Decompose", eighteenth session).
+  long harmonic_direct_points = 8192;
   /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000
   /// iterations).
   springs::SettleOptions settle = default_settle();

@@ -130,6 +130,42 @@ TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "
     CHECK(j.contains(key));
 }
 
+TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct solve's result", "[fibres][decompose]") {
+  // 400 fibres x 20 points: 22 x 22 x 20 = 9680 lattice points, two multigrid levels.
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions direct;
+  direct.fibres = 400;
+  direct.resolution = 20;
+  direct.harmonic_direct_points = 1'000'000;
+  DecomposeOptions multigrid = direct;
+  multigrid.harmonic_direct_points = 0;
+  const Decomposition a = decompose_repaired(mesh, Landmarks{}, direct);
+  const Decomposition b = decompose_repaired(mesh, Landmarks{}, multigrid);
+  const nlohmann::json& ha = a.report.settle["harmonic"];
+  const nlohmann::json& hb = b.report.settle["harmonic"];
+  CHECK(ha["backend"] == "ldlt");
+  CHECK(hb["backend"].get<std::string>().rfind("multigrid-", 0) == 0);
+  CHECK(hb["backend"] != "multigrid-1");  // V-cycles over at least two levels, not one direct solve
+  CHECK(hb["factor_seconds"] == 0.0);     // no factorization made for it
+  CHECK(hb["converged"] == true);
+  CHECK(hb["residual"].get<double>() <= 1e-12);
+  CHECK(ha["residual"].get<double>() <= 1e-12);
+  CHECK(a.report.quality.pass);
+  CHECK(b.report.quality.pass);
+  REQUIRE(a.fibres.lines.size() == b.fibres.lines.size());
+  double largest = 0.0;
+  for (std::size_t f = 0; f < a.fibres.lines.size(); ++f) {
+    REQUIRE(a.fibres.lines[f].size() == b.fibres.lines[f].size());
+    for (std::size_t i = 0; i < a.fibres.lines[f].size(); ++i)
+      largest = std::max(largest, (a.fibres.lines[f][i] - b.fibres.lines[f][i]).norm());
+  }
+  INFO("largest difference of a fibre point: " << largest);
+  CHECK(largest <= 1e-9 * a.report.quality.length.mean);
+  DecomposeOptions negative;
+  negative.harmonic_direct_points = -1;
+  CHECK_THROWS_AS(negative.validate(), OptionError);
+}
+
 TEST_CASE("fibre ends placed on a share of the automatic areas are checked against the whole areas", "[fibres][decompose]") {
   const TriangleMesh mesh = capsule();
   DecomposeOptions options;
