@@ -13,12 +13,17 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
+#include <stdexcept>
+
+#include <sys/resource.h>
 
 namespace fascicle::bench {
 
@@ -32,7 +37,40 @@ struct DecomposeBenchArgs {
   std::string json;
   int repeat = 5;
   bool skip_speed = false, skip_templates = false, skip_corpus = false;
+  std::string scale;          // "FIBRESxPOINTS,..." for the scale run; empty: no scale run
+  bool scale_direct = false;  // the scale run also with the harmonic start's direct solve forced
 };
+
+// "100x15,1000x30" -> {{100, 15}, {1000, 30}}.
+std::vector<std::array<int, 2>> parse_scale(const std::string& text) {
+  std::vector<std::array<int, 2>> sizes;
+  std::size_t begin = 0;
+  while (begin < text.size()) {
+    const std::size_t end = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, end - begin);
+    const std::size_t x = item.find('x');
+    try {
+      if (x == std::string::npos) throw std::invalid_argument("no x");
+      std::size_t used = 0;
+      const int fibres = std::stoi(item.substr(0, x), &used);
+      if (used != x) throw std::invalid_argument("fibres");
+      const std::string points_text = item.substr(x + 1);
+      const int points = std::stoi(points_text, &used);
+      if (used != points_text.size()) throw std::invalid_argument("points");
+      sizes.push_back({fibres, points});
+    } catch (const std::exception&) {
+      throw OptionError("--scale: '" + item + "' is not FIBRESxPOINTS (e.g. 1000x30)");
+    }
+    begin = end + 1;
+  }
+  return sizes;
+}
+
+long peak_resident_kib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
+}
 
 double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 double since(std::chrono::steady_clock::time_point t) {
@@ -58,8 +96,9 @@ void print_quality(const std::string& name, const std::string& status, const Che
 
 void run_decompose_bench(const DecomposeBenchArgs& args) {
   nlohmann::json out = {{"speed", nlohmann::json::array()}, {"templates", nlohmann::json::array()},
-                        {"corpus", nlohmann::json::array()}};
+                        {"corpus", nlohmann::json::array()}, {"scale", nlohmann::json::array()}};
   const fs::path data(args.data);
+  const std::vector<std::array<int, 2>> scale = parse_scale(args.scale);
   if (!args.skip_speed) {
     const std::string path = (data / args.muscle).string();
     const TriangleMesh muscle = repair_mesh(read_polygon_soup(path)).mesh;
@@ -102,6 +141,53 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
                             {"output_seconds", median(write)},
                             {"check_seconds", median(check)},
                             {"quality", quality_json(d.report.quality)}});
+  }
+  if (!scale.empty()) {
+    // Larger lattices: where the time goes as the fibres and their points grow, and the harmonic
+    // start's direct solve against the multigrid (DecomposeOptions::harmonic_direct_points).
+    const std::string path = (data / args.muscle).string();
+    const TriangleMesh muscle = repair_mesh(read_polygon_soup(path)).mesh;
+    std::printf("scale: %s, %zu triangles, one decomposition each (seconds; memory: the bench's peak so far)\n",
+                fs::path(args.muscle).filename().string().c_str(), muscle.triangles.size());
+    std::printf("%7s %6s %8s %-13s %9s %8s %8s %8s %8s %6s %7s %9s\n", "fibres", "points", "lattice", "harmonic",
+                "harm s", "sphere", "settle", "check", "total", "invert", "cov95", "peak MiB");
+    for (const auto& [fibres, points] : scale) {
+      for (const bool direct : {false, true}) {
+        if (direct && !args.scale_direct) continue;
+        DecomposeOptions options;
+        options.fibres = fibres;
+        options.resolution = points;
+        if (direct) options.harmonic_direct_points = std::numeric_limits<long>::max();
+        const auto t0 = std::chrono::steady_clock::now();
+        const Decomposition d = decompose_repaired(muscle, Landmarks{}, options);
+        const double wall = since(t0);
+        const nlohmann::json& h = d.report.settle["harmonic"];
+        const double harmonic_seconds = h["factor_seconds"].get<double>() + h["setup_seconds"].get<double>() +
+                                        h["seconds"].get<double>();
+        const long lattice = d.report.lattice["points"].get<long>();
+        const long peak = peak_resident_kib();
+        std::printf("%7d %6d %8ld %-13s %9.3f %8.3f %8.3f %8.3f %8.3f %6ld %7.3f %9.1f\n", fibres, points, lattice,
+                    h["backend"].get<std::string>().c_str(), harmonic_seconds, d.report.sphere_seconds,
+                    d.report.settle_seconds, d.report.check_seconds, wall, d.report.quality.inverted_cells,
+                    d.report.quality.coverage.p95, static_cast<double>(peak) / 1024.0);
+        out["scale"].push_back({{"muscle", args.muscle},
+                                {"fibres", fibres},
+                                {"resolution", points},
+                                {"lattice_points", lattice},
+                                {"harmonic_backend", h["backend"]},
+                                {"harmonic_factor_seconds", h["factor_seconds"]},
+                                {"harmonic_setup_seconds", h["setup_seconds"]},
+                                {"harmonic_solve_seconds", h["seconds"]},
+                                {"harmonic_iterations", h["iterations"]},
+                                {"sphere_seconds", d.report.sphere_seconds},
+                                {"placement_seconds", d.report.placement_seconds},
+                                {"settle_seconds", d.report.settle_seconds},
+                                {"check_seconds", d.report.check_seconds},
+                                {"seconds", wall},
+                                {"peak_resident_kib_so_far", peak},
+                                {"quality", quality_json(d.report.quality)}});
+      }
+    }
   }
   std::printf("%-52s %-8s %8s %6s %7s %8s %8s\n", "muscle", "status", "inside", "invert", "cov95", "attach", "seconds");
   if (!args.skip_templates) {
@@ -181,6 +267,10 @@ void add_decompose_bench(CLI::App& bench) {
   cmd->add_flag("--skip-speed", args->skip_speed, "Skip the speed run");
   cmd->add_flag("--skip-templates", args->skip_templates, "Skip the templates on the LHDL muscles");
   cmd->add_flag("--skip-corpus", args->skip_corpus, "Skip the corpus run");
+  cmd->add_option("--scale", args->scale,
+                  "Also decompose the --muscle with these lattices, FIBRESxPOINTS,... (e.g. 100x15,1000x30,2000x50)");
+  cmd->add_flag("--scale-direct", args->scale_direct,
+                "Scale run: each size also with the harmonic start's direct solve forced (for comparison)");
   cmd->callback([args] { run_decompose_bench(*args); });
 }
 
