@@ -189,7 +189,9 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
       }
     }
   }
-  std::printf("%-52s %-8s %8s %6s %7s %8s %8s\n", "muscle", "status", "inside", "invert", "cov95", "attach", "seconds");
+  if (!args.skip_templates || !args.skip_corpus)
+    std::printf("%-52s %-8s %8s %6s %7s %8s %8s\n", "muscle", "status", "inside", "invert", "cov95", "attach",
+                "seconds");
   if (!args.skip_templates) {
     const fs::path lhdl = data / "muscles" / "lhdl";
     for (const char* name : {"LHDL_R_M081_GluteusMaximus", "LHDL_R_M082_GluteusMedius", "LHDL_R_M090_Psoas",
