@@ -43,6 +43,7 @@ struct SettleArgs {
   double density = 1.1;
   double dt = 0.0;
   int coarse_start_points = springs::SettleOptions{}.coarse_start_points;
+  double coarse_start_perturbation = springs::SettleOptions{}.coarse_start_perturbation;
 };
 
 springs::SettleOptions settle_options(const SettleArgs& args) {
@@ -59,6 +60,7 @@ springs::SettleOptions settle_options(const SettleArgs& args) {
   options.mass = args.mass;
   options.dt = args.dt;
   options.coarse_start_points = args.coarse_start_points;
+  options.coarse_start_perturbation = args.coarse_start_perturbation;
   options.portable_loop = args.portable_loop;
   if (args.damping == "estimate") {
     options.damping_mode = springs::DampingMode::estimate;
@@ -240,6 +242,11 @@ void add_settle_command(CLI::App& app) {
   cmd->add_option("--coarse-start", args->coarse_start_points,
                   "static momentum on a lattice: start from the settled lattice of every other point, "
                   "recursively while a lattice has more than this many points (0: off)")
+      ->capture_default_str();
+  cmd->add_option("--coarse-start-perturbation", args->coarse_start_perturbation,
+                  "coarse start: offset each free point of an interpolated start by up to half this share of "
+                  "the mean rest length (a fixed pseudo-random pattern; starts the buckling of compressed "
+                  "lattices; 0: none)")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend,
                   "Compute backend: cpu, gl (OpenGL compute shaders), gl-gs (the thesis's geometry-shader method) "

@@ -50,6 +50,7 @@ struct SpringsBenchArgs {
   int local_global_max_size = 20;  // the sparse Cholesky factor grows too fast above this
   bool plain_kernel = false;    // structured path without the AVX-512 spring loop
   double coarse_start_tolerance = SettleOptions{}.coarse_start_tolerance;  // static momentum's coarse start
+  double coarse_start_perturbation = SettleOptions{}.coarse_start_perturbation;
 };
 
 std::vector<int> parse_list(const std::string& text, const std::string& option) {
@@ -375,6 +376,7 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
         SettleOptions options = entry.options;
         options.tolerance = 1e-6;
         options.coarse_start_tolerance = args.coarse_start_tolerance;
+        options.coarse_start_perturbation = args.coarse_start_perturbation;
         const std::string load_before = load_average();
         const double c0 = process_cpu_seconds();
         const auto t0 = clock_type::now();
@@ -431,6 +433,7 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
                              {"inner_iterations", solver->inner_iterations()}, {"status", status},
                              {"start_levels", solver->start_levels()},
                              {"start_iterations", solver->start_iterations()},
+                             {"coarse_start_perturbation", options.coarse_start_perturbation},
                              {"final_residual", residual}, {"wall_seconds", wall}, {"cpu_seconds", cpu},
                              {"load_average_before", load_before}});
       }
@@ -486,6 +489,10 @@ void add_springs_bench(CLI::App& bench) {
   cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")->capture_default_str();
   cmd->add_option("--coarse-start-tolerance", args->coarse_start_tolerance,
                   "Relative residual of the coarse lattices of static-momentum's coarse start")
+      ->capture_default_str();
+  cmd->add_option("--coarse-start-perturbation", args->coarse_start_perturbation,
+                  "Share of the mean rest length by which static-momentum's coarse start offsets its free points "
+                  "(0: none)")
       ->capture_default_str();
   cmd->add_flag("--plain-kernel", args->plain_kernel,
                "Structured path: the plain C++ spring loop instead of the vector one, AVX-512 or AVX2 (for comparison)");

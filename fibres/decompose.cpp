@@ -357,6 +357,10 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   // for processors without AVX-512"), and a lattice of a few thousand points settles in
   // milliseconds with either loop.
   s.portable_loop = true;
+  // Lattices above coarse_start_points start from their coarse lattice's equilibrium unperturbed,
+  // as they were measured (docs/BENCHMARKS.md, "Decompose"): a decomposition's lattice is under
+  // tension, not the compressed lattice whose buckling the perturbation starts.
+  s.coarse_start_perturbation = 0.0;
   return s;
 }
 

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
 
 namespace fascicle::springs {
@@ -31,6 +33,15 @@ struct RestTable {
     return 0.0;
   }
 };
+
+// A number in [0, 1) from i (the splitmix64 finaliser of Steele, Lea and Flood 2014).
+double unit_hash(std::uint64_t i) {
+  std::uint64_t z = i + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
 
 }  // namespace
 
@@ -208,6 +219,25 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
         }
         system.positions[p] = sum;
       }
+  // The start's perturbation (SettleOptions::coarse_start_perturbation), model-6 only: a fixed
+  // offset per free point, a share of the mean rest length of the springs along the axes.
+  if (shape.model == SpringModel::model6 && options.coarse_start_perturbation > 0.0) {
+    double rest_sum = 0.0;
+    long rest_count = 0;
+    for (std::size_t d = 0; d < table.dirs.size(); ++d) {
+      const auto& e = table.dirs[d];
+      if (std::abs(e[0]) + std::abs(e[1]) + std::abs(e[2]) != 1) continue;
+      for (double r : table.rest[d])
+        if (r > 0.0) {
+          rest_sum += r;
+          ++rest_count;
+        }
+    }
+    const double amplitude = rest_count > 0 ? options.coarse_start_perturbation * rest_sum / rest_count : 0.0;
+    for (long p = 0; p < n; ++p)
+      if (!system.fixed[p])
+        for (int c = 0; c < 3; ++c) system.positions[p][c] += amplitude * (unit_hash(3 * static_cast<std::uint64_t>(p) + c) - 0.5);
+  }
   report.seconds = std::chrono::duration<double>(clock::now() - t0).count();
   return report;
 }

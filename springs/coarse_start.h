@@ -15,7 +15,10 @@
 /// rest lengths of the fine springs along the lattice path it spans (two springs in series with
 /// stiffness 1 / rest each make one of stiffness 1 / (sum of rests): the same chain). Free fine
 /// points then move to the trilinear interpolation (in index space) of the settled coarse
-/// positions; fixed points never move.
+/// positions, on model-6 lattices plus a small fixed offset per free point
+/// (options.coarse_start_perturbation: a share of the mean axis rest length, hashed from the
+/// point's index) that starts the buckling a compressed fine lattice needs and its smooth coarse
+/// start lacks; fixed points never move.
 
 #include "springs/settle.h"
 
@@ -29,7 +32,7 @@ struct CoarseStartReport {
 };
 
 /// Moves the free points of `system`, a lattice of `shape` (build_lattice order, springs exactly
-/// the model's neighbours), to the interpolated equilibrium of its coarse lattice, which is
+/// the model's neighbours), to the interpolated (and perturbed) equilibrium of its coarse lattice, which is
 /// settled the same way (static momentum method, relative residual
 /// max(options.tolerance, options.coarse_start_tolerance)), recursively while a lattice has more
 /// than options.coarse_start_points points and every side at least 5 points. Returns levels = 0

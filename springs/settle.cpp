@@ -75,6 +75,8 @@ void SettleOptions::validate() const {
   MultigridOptions multigrid;
   if (coarse_start_points != 0 && coarse_start_points < 8)
     throw OptionError("coarse_start_points: must be 0 (off) or >= 8, got " + std::to_string(coarse_start_points));
+  if (!(coarse_start_perturbation >= 0.0 && coarse_start_perturbation <= 1.0))
+    throw OptionError("coarse_start_perturbation: must be in [0, 1], got " + str(coarse_start_perturbation));
   if (!(coarse_start_tolerance > 0.0 && coarse_start_tolerance < 1.0))
     throw OptionError("coarse_start_tolerance: must be in (0, 1), got " + str(coarse_start_tolerance));
   multigrid.smoothing_steps = multigrid_smoothing_steps;

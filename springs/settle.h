@@ -132,6 +132,18 @@ struct SettleOptions {
   double coarse_start_tolerance = 1e-6;  ///< relative residual the coarse lattices are settled to
                                          ///< (at least the tolerance), in (0, 1) (default 1e-6: model-26
                                          ///< lattices need accurate coarse solutions, docs/BENCHMARKS.md)
+  /// Coarse start of a model-6 lattice: the free points of each interpolated start are moved by a
+  /// fixed pseudo-random offset (each coordinate uniform in [-a/2, a/2), hashed from the point's
+  /// index, so the same on every run and thread count), a = this share of the lattice's mean axis
+  /// spring rest length, in [0, 1], 0 = none (default 0.2). Why: the interpolated start is smooth,
+  /// and where model-6 springs are compressed (the lattice squeezed along an axis) the fine
+  /// lattice's equilibria are buckled by modes of the fine spacing that the coarse lattice cannot
+  /// hold; the smooth start is then near a saddle, which the momentum method leaves only as fast as
+  /// its round-off grows. The bench problem at 100^3 model-6: 4125-4784 fine iterations to 1e-6
+  /// with 0.1-1.0 of the rest length, 7313 without (docs/BENCHMARKS.md, nineteenth session).
+  /// Model-26 lattices (their diagonals hold them) are not perturbed: at 50^3 a perturbation of
+  /// 0.2 took 2227 iterations instead of 1737.
+  double coarse_start_perturbation = 0.2;
   int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
                                          ///< solved directly, 8..200000 (default 4096)
 

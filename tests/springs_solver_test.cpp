@@ -866,6 +866,7 @@ TEST_CASE("the coarse start reproduces a rigid motion and reaches the fine solve
       options.tolerance = 1e-10;
       options.coarse_start_tolerance = 1e-11;  // the coarse lattices to 1e-10 too
       options.coarse_start_points = 500;
+      options.coarse_start_perturbation = 0.0;  // the interpolation alone (perturbation: below)
       const LatticeShape shape = shape_of(lattice);
       SpringSystem started = lattice.system;
       const CoarseStartReport report = coarse_start(started, shape, options);
@@ -896,6 +897,70 @@ TEST_CASE("the coarse start reproduces a rigid motion and reaches the fine solve
       CHECK(max_distance(a.positions, b.positions) < 1e-6 / 19);
     }
   }
+}
+
+TEST_CASE("the coarse start's perturbation is fixed and bounded and moves only free model-6 points", "[springs][solver]") {
+  // The bench problem (squeezed along y) at 12^3: one coarse level of 7^3, no start of its own, so
+  // the perturbed and the plain start share the coarse equilibrium and differ by the offsets only.
+  SettleOptions options;
+  options.solver = SolverKind::static_equilibrium;
+  options.tolerance = 1e-8;
+  options.coarse_start_points = 500;
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    INFO("model-" << static_cast<int>(model));
+    const Lattice lattice = moved_cube(12, model);
+    const LatticeShape shape = shape_of(lattice);
+    double rest_sum = 0.0;
+    int axis_springs = 0;
+    for (const Spring& spring : lattice.system.springs) {
+      const long delta = std::labs(static_cast<long>(spring.b) - spring.a);
+      if (delta == 1 || delta == 12 || delta == 144) {  // along x, y or z
+        rest_sum += spring.rest;
+        ++axis_springs;
+      }
+    }
+    REQUIRE(axis_springs == 3 * 11 * 144);
+    const double amplitude = options.coarse_start_perturbation * rest_sum / axis_springs;
+    SettleOptions plain_options = options;
+    plain_options.coarse_start_perturbation = 0.0;
+    SpringSystem plain = lattice.system, perturbed = lattice.system, again = lattice.system;
+    REQUIRE(coarse_start(plain, shape, plain_options).levels == 1);
+    REQUIRE(coarse_start(perturbed, shape, options).levels == 1);
+    REQUIRE(coarse_start(again, shape, options).levels == 1);
+    CHECK(perturbed.positions == again.positions);  // the same offsets every time
+    double largest = 0.0, sum = 0.0;
+    int free_coordinates = 0;
+    for (std::size_t i = 0; i < plain.positions.size(); ++i) {
+      if (lattice.system.fixed[i]) {
+        CHECK(perturbed.positions[i] == lattice.system.positions[i]);
+        continue;
+      }
+      for (int c = 0; c < 3; ++c) {
+        const double offset = perturbed.positions[i][c] - plain.positions[i][c];
+        largest = std::max(largest, std::abs(offset));
+        sum += offset;
+        ++free_coordinates;
+      }
+    }
+    if (model == SpringModel::model6) {
+      CHECK(largest <= 0.5 * amplitude * (1.0 + 1e-9));
+      CHECK(largest > 0.45 * amplitude);                        // 3000 uniform draws reach the edge
+      CHECK(std::abs(sum / free_coordinates) < 0.02 * amplitude);  // centred (about 0.005 expected)
+      // The solve from the perturbed start comes to rest.
+      SpringSystem settled = lattice.system;
+      const SettleReport report = settle(settled, options, &shape);
+      CHECK(report.converged);
+      CHECK(report.start_levels == 1);
+      CHECK(report.residual <= 1e-8);
+    } else {
+      CHECK(largest == 0.0);  // model-26 starts are not perturbed
+    }
+  }
+  SettleOptions bad;
+  bad.coarse_start_perturbation = -0.1;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
+  bad.coarse_start_perturbation = 1.5;
+  CHECK_THROWS_AS(bad.validate(), OptionError);
 }
 
 TEST_CASE("the coarse start declines what is not a full lattice and checks its options", "[springs][solver]") {
