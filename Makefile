@@ -1,6 +1,7 @@
 # Fascicle: two commands for a new user on Debian 12.
 #   make demo   installs dependencies, builds, runs the main job on a generated sample
 #   make test   installs dependencies, builds, runs the whole test suite
+#   make install PREFIX=DIR   builds and installs the program in DIR/bin, its libraries in DIR/lib
 # Reliability (docs/RELIABILITY.md):
 #   make test-sanitize   the test suite built with ASan+UBSan (-O1 -g1) in build-sanitize/ ([slow], [no-sanitize] excluded)
 #   make test-sanitize-geometry   the CGAL-free tests only under ASan+UBSan (minutes, for CI)
@@ -11,8 +12,9 @@ BUILD ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 BUILD_TYPE ?= Release
 DEMO_DIR ?= demo-out
+PREFIX ?= /usr/local
 
-.PHONY: all deps configure build test demo clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
+.PHONY: all deps configure build test demo install clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
 
 SANITIZE_BUILD ?= build-sanitize
 FUZZ_BUILD ?= build-fuzz
@@ -33,6 +35,9 @@ build: configure
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+install: build
+	@cmake --install $(BUILD) --prefix $(PREFIX)
 
 demo: build
 	@bash scripts/demo.sh $(BUILD)/fascicle $(DEMO_DIR)

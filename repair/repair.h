@@ -119,6 +119,7 @@ struct RepairReport {
   bool fallback_used = false;    ///< the alpha-wrap fallback produced the output
   std::string fallback_reason;   ///< why local repair was not enough
   double wrap_alpha = 0.0, wrap_offset = 0.0;  ///< absolute, when wrapped
+  std::string wrap_worker;       ///< the alpha-wrap worker program that ran, when wrapped
   /// Two-sided approximate Hausdorff distance between the output and the input faces it stands
   /// for (the input less the faces dropped with smaller components), relative to the input's
   /// bounding-box diagonal. With the wrap fallback: the whole input.

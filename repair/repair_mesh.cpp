@@ -246,6 +246,7 @@ class RepairPipeline {
     report_.fallback_used = true;
     report_.wrap_alpha = best_alpha;
     report_.wrap_offset = best_alpha * options_.wrap_offset_ratio;
+    report_.wrap_worker = worker;
     return std::move(*best);
   }
 

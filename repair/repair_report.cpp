@@ -53,6 +53,7 @@ nlohmann::json RepairReport::to_json() const {
   if (fallback_used) {
     fallback["alpha"] = wrap_alpha;
     fallback["offset"] = wrap_offset;
+    fallback["worker"] = wrap_worker;
   }
   return {{"status", status},
           {"input", census_json(input)},

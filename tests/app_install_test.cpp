@@ -1,0 +1,82 @@
+// The installed program (`cmake --install`, `make install PREFIX=...`): the program, its
+// alpha-wrap worker and the module libraries land in PREFIX/bin and PREFIX/lib, the program loads
+// the installed libraries (not the build tree's), finds the installed worker beside itself, and
+// still works after the installed tree is moved elsewhere.
+
+#include "test_common.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+using namespace fascicle;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool executable(const fs::path& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && ::access(path.c_str(), X_OK) == 0;
+}
+
+}  // namespace
+
+TEST_CASE("the installed program runs from its own folder with its own libraries and worker", "[app][install]") {
+  test::TempDir dir;
+  const fs::path prefix = dir.path() / "prefix";
+  REQUIRE(test::run_command("'" + std::string(FASCICLE_CMAKE_COMMAND) + "' --install '" + FASCICLE_BUILD_DIR +
+                            "' --prefix '" + prefix.string() + "' >'" + dir.file("install.log") + "' 2>&1") == 0);
+  // Moved as a whole: nothing may point back into the prefix it was installed to.
+  const fs::path moved = dir.path() / "moved";
+  fs::rename(prefix, moved);
+  const fs::path bin = moved / "bin", lib = moved / FASCICLE_INSTALL_LIBDIR;
+  const fs::path program = bin / "fascicle", worker = bin / "fascicle-wrap-worker";
+  REQUIRE(executable(program));
+  REQUIRE(executable(worker));
+  for (const char* module : {"geometry", "repair", "morph", "springs", "fibres", "bench"})
+    CHECK(fs::is_regular_file(lib / ("libfascicle_" + std::string(module) + ".so")));
+
+  // Every libfascicle_* the program loads is the moved tree's.
+  REQUIRE(test::run_command("ldd '" + program.string() + "' >'" + dir.file("ldd.txt") + "' 2>&1") == 0);
+  std::istringstream ldd(read_text(dir.file("ldd.txt")));
+  int ours = 0;
+  for (std::string line; std::getline(ldd, line);) {
+    INFO(line);
+    CHECK(line.find("not found") == std::string::npos);
+    if (line.find("libfascicle_") == std::string::npos) continue;
+    ++ours;
+    const std::size_t arrow = line.find("=> ");
+    REQUIRE(arrow != std::string::npos);
+    const std::string path = line.substr(arrow + 3, line.find(" (") - arrow - 3);
+    CHECK(fs::canonical(path).parent_path() == fs::canonical(lib));
+  }
+  CHECK(ours >= 6);
+
+  // It runs: a sample muscle decomposed, and a repair that needs the alpha wrap runs the
+  // worker beside the program (the report names it).
+  const std::string run = "'" + program.string() + "' -q ";
+  CHECK(test::run_command(run + "--version >/dev/null") == 0);
+  REQUIRE(test::run_command(run + "sample -o '" + dir.file("muscle.off") + "'") == 0);
+  CHECK(test::run_command(run + "decompose '" + dir.file("muscle.off") + "' -o '" + dir.file("fibres.vtk") +
+                          "' --report '" + dir.file("decompose.json") + "'") == 0);
+  CHECK(fs::is_regular_file(dir.file("fibres.vtk")));
+  CHECK(nlohmann::json::parse(read_text(dir.file("decompose.json")))["status"] == "ok");
+  REQUIRE(test::run_command(run + "sample --kind capsule --inject inner_shell -o '" + dir.file("shells.off") + "'") == 0);
+  REQUIRE(test::run_command("env -u FASCICLE_WRAP_WORKER " + run + "repair '" + dir.file("shells.off") + "' -o '" +
+                            dir.file("wrapped.off") + "' --components merge --report '" + dir.file("repair.json") +
+                            "'") == 0);
+  const nlohmann::json report = nlohmann::json::parse(read_text(dir.file("repair.json")));
+  REQUIRE(report["fallback"]["used"] == true);
+  CHECK(fs::canonical(report["fallback"]["worker"].get<std::string>()) == fs::canonical(worker));
+}
