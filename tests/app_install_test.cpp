@@ -16,16 +16,10 @@
 #include <vector>
 
 using namespace fascicle;
+using test::read_text;
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 bool executable(const fs::path& path) {
   std::error_code ec;

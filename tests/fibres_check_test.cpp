@@ -20,6 +20,7 @@
 #include <sstream>
 
 using namespace fascicle;
+using test::read_text;
 using fascicle::test::TempDir;
 
 namespace {
@@ -64,13 +65,6 @@ Attachments areas_for(const TriangleMesh& box, Polylines& fibres) {
 
 bool has_failed(const CheckReport& report, const std::string& name) {
   return std::find(report.failed.begin(), report.failed.end(), name) != report.failed.end();
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 int run(const std::string& args, const std::string& out = "/dev/null") {

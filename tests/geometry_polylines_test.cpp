@@ -12,6 +12,7 @@
 #include <sstream>
 
 using namespace fascicle;
+using test::read_text;
 using fascicle::test::TempDir;
 
 namespace {
@@ -27,13 +28,6 @@ Polylines awkward_fibres() {
 }
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 const CellArray* find(const Polylines& lines, const std::string& name) {
   for (const CellArray& a : lines.cell_data)

@@ -32,6 +32,7 @@
 #include <thread>
 
 using namespace fascicle;
+using test::read_text;
 namespace fs = std::filesystem;
 
 namespace {
@@ -118,11 +119,6 @@ std::string write_script(const test::TempDir& dir, const std::string& name, cons
   std::ofstream(path) << "#!/bin/sh\n" << body << "\n";
   ::chmod(path.c_str(), 0755);
   return path;
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 }  // namespace

@@ -34,16 +34,10 @@
 #include <tuple>
 
 using namespace fascicle;
+using test::read_text;
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 int env_int(const char* name, int fallback) {
   const char* value = std::getenv(name);

@@ -26,6 +26,12 @@ inline std::string data_dir() {
 /// The built program.
 inline std::string program() { return FASCICLE_PROGRAM; }
 
+/// A whole file's bytes ("" when it cannot be read).
+inline std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
 /// A fresh empty folder under the system temp folder, removed by the destructor.
 class TempDir {
  public:
