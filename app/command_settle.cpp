@@ -244,9 +244,9 @@ void add_settle_command(CLI::App& app) {
                   "recursively while a lattice has more than this many points (0: off)")
       ->capture_default_str();
   cmd->add_option("--coarse-start-perturbation", args->coarse_start_perturbation,
-                  "coarse start: offset each free point of an interpolated start by up to half this share of "
-                  "the mean rest length (a fixed pseudo-random pattern; starts the buckling of compressed "
-                  "lattices; 0: none)")
+                  "coarse start, model-6 lattices only: offset each free point of an interpolated start by up to "
+                  "half this share of the mean rest length (a fixed pseudo-random pattern; starts the buckling "
+                  "of compressed lattices; 0: none)")
       ->capture_default_str();
   cmd->add_option("--backend", args->backend,
                   "Compute backend: cpu, gl (OpenGL compute shaders), gl-gs (the thesis's geometry-shader method) "

@@ -492,7 +492,7 @@ void add_springs_bench(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--coarse-start-perturbation", args->coarse_start_perturbation,
                   "Share of the mean rest length by which static-momentum's coarse start offsets its free points "
-                  "(0: none)")
+                  "(model-6 lattices only; 0: none)")
       ->capture_default_str();
   cmd->add_flag("--plain-kernel", args->plain_kernel,
                "Structured path: the plain C++ spring loop instead of the vector one, AVX-512 or AVX2 (for comparison)");

@@ -3,6 +3,7 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 #include "geometry/primitives.h"
+#include "geometry/splitmix64.h"
 
 #include <algorithm>
 #include <cmath>
@@ -869,14 +870,8 @@ PolygonSoup inject_random_combination(const TriangleMesh& mesh, std::uint64_t se
 }
 
 std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t step) {
-  // SplitMix64 (Steele, Lea, Flood 2014) applied twice: once to the seed, once with the step.
-  auto mix = [](std::uint64_t x) {
-    x += 0x9E3779B97F4A7C15ULL;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-    return x ^ (x >> 31);
-  };
-  return mix(mix(seed) ^ step);
+  // SplitMix64 applied twice: once to the seed, once with the step.
+  return splitmix64(splitmix64(seed) ^ step);
 }
 
 TriangleMesh soup_triangles(const PolygonSoup& soup) {

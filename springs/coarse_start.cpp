@@ -3,6 +3,7 @@
 #include "springs/coarse_start.h"
 
 #include "geometry/errors.h"
+#include "geometry/splitmix64.h"
 #include "springs/solvers_internal.h"
 
 #include <algorithm>
@@ -33,15 +34,6 @@ struct RestTable {
     return 0.0;
   }
 };
-
-// A number in [0, 1) from i (the splitmix64 finaliser of Steele, Lea and Flood 2014).
-double unit_hash(std::uint64_t i) {
-  std::uint64_t z = i + 0x9E3779B97F4A7C15ull;
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  z ^= z >> 31;
-  return static_cast<double>(z >> 11) * 0x1.0p-53;
-}
 
 }  // namespace
 
@@ -224,19 +216,16 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
   if (shape.model == SpringModel::model6 && options.coarse_start_perturbation > 0.0) {
     double rest_sum = 0.0;
     long rest_count = 0;
-    for (std::size_t d = 0; d < table.dirs.size(); ++d) {
-      const auto& e = table.dirs[d];
-      if (std::abs(e[0]) + std::abs(e[1]) + std::abs(e[2]) != 1) continue;
-      for (double r : table.rest[d])
+    for (const auto& rests : table.rest)  // model-6: every direction is an axis
+      for (double r : rests)
         if (r > 0.0) {
           rest_sum += r;
           ++rest_count;
         }
-    }
     const double amplitude = rest_count > 0 ? options.coarse_start_perturbation * rest_sum / rest_count : 0.0;
     for (long p = 0; p < n; ++p)
       if (!system.fixed[p])
-        for (int c = 0; c < 3; ++c) system.positions[p][c] += amplitude * (unit_hash(3 * static_cast<std::uint64_t>(p) + c) - 0.5);
+        for (int c = 0; c < 3; ++c) system.positions[p][c] += amplitude * (splitmix64_unit(3 * static_cast<std::uint64_t>(p) + c) - 0.5);
   }
   report.seconds = std::chrono::duration<double>(clock::now() - t0).count();
   return report;
