@@ -625,6 +625,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     int soft = 0, local_rounds = 0;
     for (;;) {
       springs::SettleReport settled;
+      nlohmann::json gpu_fields = nlohmann::json::object();  // the GPU's stop and the CPU's polish
       if (options.backend == "gl") {
   #ifdef FASCICLE_HAVE_SHADERS
         const shaders::GlContext context;
@@ -633,6 +634,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                                                                                anchor_spring.empty() ? &shape : nullptr);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
+        gpu_fields = {{"gpu_residual", gpu_report.gpu_residual}, {"stalled", gpu_report.stalled},
+                      {"polish_iterations", gpu_report.polish_iterations}, {"polish_seconds", gpu_report.polish_seconds}};
   #else
         throw Error(ErrorCode::gpu, "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
                                     "was built); use --backend cpu");
@@ -641,6 +644,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
         settled = springs::settle(system, settle_options, anchor_spring.empty() ? &shape : nullptr);
       }
       solves.push_back(settle_json(settled));
+      solves.back().update(gpu_fields);
       outside = outside_free_points(system, query);
       if (outside.empty() || local_rounds == options.contact_rounds) break;
       ++local_rounds;

@@ -821,6 +821,20 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
                         " is not finite after the GPU solve; use a smaller --dt or a larger --mass");
     system.positions[i] = back.positions[i];
   }
+  report.gpu_residual = residual;
+  if (report.stalled && gpu_options.polish) {
+    // float32 stopped above the tolerance: the CPU finishes from here in double (the static
+    // equilibrium is the Verlet solver's rest state too).
+    springs::SettleOptions cpu = options;
+    cpu.solver = springs::SolverKind::static_equilibrium;
+    cpu.static_method = springs::StaticMethod::momentum;
+    cpu.coarse_start_points = 0;  // start from the GPU's positions, not from a coarse lattice
+    const springs::SettleReport polished = springs::settle(system, cpu, shape);
+    report.polish_iterations = polished.iterations;
+    report.polish_seconds = polished.setup_seconds + polished.seconds;
+    report.residual = polished.residual;
+    report.converged = polished.converged;
+  }
   return report;
 }
 

@@ -70,6 +70,15 @@ struct GpuSettleOptions {
                                ///< of iterations while a slow mode swings, with the points moving
                                ///< (a few % of a spacing per 512 iterations on a 10^3 lattice);
                                ///< >= 0 (default 1e-4)
+  bool polish = true;  ///< when the float32 solve stalls above the tolerance (stall_checks), the
+                       ///< CPU finishes it in double from the GPU's positions: the static solver's
+                       ///< momentum method, without a coarse start, to the same tolerance and
+                       ///< iteration limit (default true). Why: where the springs are stretched far
+                       ///< beyond their rest lengths (a decomposition's tension rest: about 1700
+                       ///< times) the residual is measured against forces of stiffness x rest, and
+                       ///< float32 stops at 0.03-0.16 of it (the opendihu left biceps; the CPU
+                       ///< reaches 1e-4 in 146-321 iterations; polished: 40-161), which changed
+                       ///< which lattice cells fold (docs/BENCHMARKS.md, twentieth session)
   /// Throws OptionError naming the bad field.
   void validate() const;
 };
@@ -134,14 +143,18 @@ struct GpuSettleReport : springs::SettleReport {
   double readback_seconds = 0.0;  ///< final readback
   std::size_t gpu_bytes = 0;   ///< buffers and textures
   bool stalled = false;        ///< stopped because the residual no longer fell (stall_checks)
+  double gpu_residual = 0.0;   ///< relative residual where the GPU stopped (before any polish)
+  int polish_iterations = 0;   ///< CPU iterations of the double-precision polish (0: none ran)
+  double polish_seconds = 0.0; ///< its wall time, set-up included
 };
 
 /// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual
 /// on the GPU after each (and the energy every energy_interval iterations, see above), stops at the tolerance or max_iterations (tolerance 0 runs exactly
 /// max_iterations and checks once at the end) or when the residual stops falling in float32
 /// (GpuSettleOptions::stall_checks; report.stalled), reads the positions back once and writes the
-/// free points into system.positions (fixed points keep their exact input bits). The residual
-/// history holds one value per check. Throws as make_gpu_solver, SolverError on divergence.
+/// free points into system.positions (fixed points keep their exact input bits); after a stall the
+/// CPU polishes them in double (GpuSettleOptions::polish), and residual and converged are then the
+/// polish's. The residual history holds one value per GPU check. Throws as make_gpu_solver, SolverError on divergence.
 GpuSettleReport settle_gpu(const GlContext& context, springs::SpringSystem& system,
                            const springs::SettleOptions& options, const GpuSettleOptions& gpu_options,
                            const springs::LatticeShape* shape = nullptr);

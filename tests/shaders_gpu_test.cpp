@@ -433,6 +433,7 @@ TEST_CASE("settle_gpu stops when float32 cannot reach the tolerance", "[gpu]") {
     gpu_options.backend = backend;
     gpu_options.check_interval = 8;
     gpu_options.stall_checks = 4;
+    gpu_options.polish = false;  // the stall itself (the polish: the test after the next)
     SpringSystem system = lattice.system;
     const GpuSettleReport report = settle_gpu(context(), system, options, gpu_options, &shape);
     INFO(gpu_backend_name(backend) << ": " << report.iterations << " iterations, residual " << report.residual);
@@ -481,14 +482,65 @@ TEST_CASE("a Verlet residual that rises while the lattice swings is not a stall"
   // Without the motion test (any motion counts as standing still) the rise is taken for a stall.
   GpuSettleOptions no_motion_test;
   no_motion_test.stall_motion = 1e9;
+  no_motion_test.polish = false;
   SpringSystem stalled = lattice.system;
   const GpuSettleReport early = settle_gpu(context(), stalled, options, no_motion_test, &shape);
   CHECK(early.stalled);
   CHECK(!early.converged);
+  CHECK(early.polish_iterations == 0);
+  CHECK(early.residual == early.gpu_residual);
 
   GpuSettleOptions bad;
   bad.stall_motion = -1.0;
   CHECK_THROWS_AS(bad.validate(), OptionError);
+}
+
+TEST_CASE("a float32 stall is polished in double on the CPU (springs stretched far beyond their rest)", "[gpu]") {
+  // A decomposition's tension rest: rest lengths a small share of the spring lengths, stiffness
+  // 1 / rest. The residual is measured against stiffness x rest (1 here) while the springs pull
+  // with about 1000, so float32 forces stop far above a tolerance the CPU reaches in double.
+  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+    Lattice lattice = moved_cube(10, model);
+    for (Spring& spring : lattice.system.springs) {
+      spring.rest *= 1e-3;
+      spring.stiffness = 1.0 / spring.rest;
+    }
+    const LatticeShape shape = shape_of(lattice);
+    SettleOptions options;
+    options.solver = SolverKind::static_equilibrium;
+    options.tolerance = 1e-5;
+    options.max_iterations = 20000;
+    SpringSystem cpu = lattice.system;
+    const SettleReport reference = settle(cpu, options, &shape);
+    REQUIRE(reference.converged);
+    const double size = lattice_size(lattice.system.positions);
+
+    GpuSettleOptions unpolished;
+    unpolished.polish = false;
+    SpringSystem raw = lattice.system;
+    const GpuSettleReport stop = settle_gpu(context(), raw, options, unpolished, &shape);
+    INFO("model-" << static_cast<int>(model) << ": float32 stopped at " << stop.gpu_residual << " after "
+                  << stop.iterations << " iterations; CPU " << reference.iterations);
+    REQUIRE(stop.stalled);  // the premise: float32 cannot reach the tolerance
+    CHECK(!stop.converged);
+    CHECK(stop.residual == stop.gpu_residual);
+    CHECK(stop.gpu_residual > 10.0 * options.tolerance);
+    CHECK(stop.polish_iterations == 0);
+
+    SpringSystem gpu = lattice.system;
+    const GpuSettleReport polished = settle_gpu(context(), gpu, options, GpuSettleOptions{}, &shape);
+    INFO("polished: " << polished.polish_iterations << " iterations to " << polished.residual);
+    CHECK(polished.stalled);
+    CHECK(polished.converged);
+    CHECK(polished.residual <= options.tolerance);
+    CHECK(polished.polish_iterations > 0);
+    CHECK(polished.polish_iterations < reference.iterations);  // it starts next to the equilibrium
+    CHECK(polished.polish_seconds > 0.0);
+    CHECK(relative_residual(gpu, gpu.positions) == Approx(polished.residual).epsilon(1e-6));  // double, at the output
+    CHECK(max_distance(gpu.positions, cpu.positions) < 1e-6 * size);
+    for (std::size_t i = 0; i < gpu.positions.size(); ++i)
+      if (gpu.fixed[i]) CHECK(gpu.positions[i] == lattice.system.positions[i]);  // bitwise
+  }
 }
 
 TEST_CASE("a lattice far from the origin keeps float32 precision (positions relative to its centre)", "[gpu]") {

@@ -106,6 +106,57 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
   CHECK(statics["solver"] == "static");
 }
 
+TEST_CASE("fascicle settle --backend gl polishes a float32 stall on the CPU (--gpu-polish)", "[gpu][program]") {
+  if (!std::filesystem::exists(test::program())) {
+    WARN("skipped: " << test::program() << " is not built");
+    return;
+  }
+  // The boundary moved to 1000 times the template's size: every spring pulls with about 1000
+  // times stiffness x rest, the measure of the residual, and float32 stops far above 1e-5.
+  test::TempDir dir;
+  LatticeOptions lattice_options;
+  lattice_options.fibres = 36;
+  lattice_options.resolution = 8;
+  const Lattice lattice = build_lattice(lattice_options);
+  const std::string input = dir.file("lattice.txt");
+  write_thesis_model(input, to_thesis_model(lattice));
+  std::ofstream targets(dir.file("targets.txt"));
+  targets.precision(17);
+  for (int i = 0; i < lattice.point_count(); ++i)
+    if (lattice.system.fixed[i]) {
+      const Vec3 p = 1000.0 * (lattice.system.positions[i] - Vec3(0.5, 0.5, 0.5));
+      targets << i << " " << 1.2 * p.x() << " " << 0.9 * p.y() << " " << p.z() + 0.1 * p.x() << "\n";
+    }
+  targets.close();
+  const std::string base = test::program() + " --quiet settle " + input + " --targets " + dir.file("targets.txt") +
+                           " --solver static --tolerance 1e-5 --max-iterations 20000";
+  REQUIRE(test::run_command(base + " --backend gl --gpu-polish false -o " + dir.file("raw.txt") + " --report " +
+                            dir.file("raw.json")) == 0);
+  const nlohmann::json raw = read_json(dir.file("raw.json"));
+  INFO(raw.dump());
+  REQUIRE(raw["gpu"]["stalled"] == true);  // the premise
+  CHECK(raw["converged"] == false);
+  CHECK(raw["gpu"]["polish"] == false);
+  CHECK(raw["gpu"]["polish_iterations"] == 0);
+  CHECK(raw["residual"].get<double>() > 1e-4);
+  REQUIRE(test::run_command(base + " --backend gl -o " + dir.file("polished.txt") + " --report " + dir.file("polished.json")) == 0);
+  const nlohmann::json polished = read_json(dir.file("polished.json"));
+  INFO(polished.dump());
+  CHECK(polished["gpu"]["stalled"] == true);
+  CHECK(polished["gpu"]["polish"] == true);
+  CHECK(polished["gpu"]["polish_iterations"].get<int>() > 0);
+  CHECK(polished["gpu"]["gpu_residual"].get<double>() > 1e-4);
+  CHECK(polished["converged"] == true);
+  CHECK(polished["residual"].get<double>() <= 1e-5);
+  // The CPU's equilibrium, to the tolerance (the lattice is about 1000 across).
+  REQUIRE(test::run_command(base + " --backend cpu -o " + dir.file("cpu.txt")) == 0);
+  const ThesisModel cpu = read_thesis_model(dir.file("cpu.txt")), gpu = read_thesis_model(dir.file("polished.txt"));
+  REQUIRE(gpu.points.size() == cpu.points.size());
+  double difference = 0.0;
+  for (std::size_t i = 0; i < gpu.points.size(); ++i) difference = std::max(difference, (gpu.points[i] - cpu.points[i]).norm());
+  CHECK(difference < 1e-3);
+}
+
 #else  // built without OpenGL/EGL/GLEW: the GPU backends are errors with exit code 15
 
 #include "geometry/errors.h"
