@@ -490,11 +490,27 @@ PreparedLattice prepare_lattice(const DecomposeOptions& options) {
   return out;
 }
 
+// The OpenGL context of a decomposition's GPU settles (backend "gl"): made by the first of them
+// on the calling thread and kept for the others, the attempts' included, instead of a context
+// (EGL display, driver, GLEW) for every settle.
+class GpuContextCache {
+ public:
+#ifdef FASCICLE_HAVE_SHADERS
+  const shaders::GlContext& get() {
+    if (!context_) context_ = std::make_unique<shaders::GlContext>();
+    return *context_;
+  }
+
+ private:
+  std::unique_ptr<shaders::GlContext> context_;
+#endif
+};
+
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-// `query`, `sphere` and `prepared` are made once for all attempts.
+// `query`, `sphere`, `prepared` and `gpu` are made once for all attempts.
 Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
                                 const PreparedLattice& prepared, const Landmarks& landmarks,
-                                const DecomposeOptions& options) {
+                                const DecomposeOptions& options, GpuContextCache& gpu) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -628,15 +644,14 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       nlohmann::json gpu_fields = nlohmann::json::object();  // the GPU's stop and the CPU's polish
       if (options.backend == "gl") {
   #ifdef FASCICLE_HAVE_SHADERS
-        const shaders::GlContext context;
-        shaders::GpuSettleOptions gpu;
-        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(context, system, settle_options, gpu,
+        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(gpu.get(), system, settle_options, {},
                                                                                anchor_spring.empty() ? &shape : nullptr);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
         gpu_fields = {{"gpu_residual", gpu_report.gpu_residual}, {"stalled", gpu_report.stalled},
                       {"polish_iterations", gpu_report.polish_iterations}, {"polish_seconds", gpu_report.polish_seconds}};
   #else
+        (void)gpu;
         throw Error(ErrorCode::gpu, "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
                                     "was built); use --backend cpu");
   #endif
@@ -874,7 +889,8 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       });
   const SurfaceQuery& query = *built_query;
   const double setup_seconds = since(start);
-  Decomposition best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options);
+  GpuContextCache gpu;
+  Decomposition best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, gpu);
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
@@ -900,7 +916,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       continue;
     }
     try {
-      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry);
+      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, gpu);
       if (step.starts_sequence) {
         first_inverted = d.report.quality.inverted_cells;
         first_ring_freed = ring_freed(d);
