@@ -128,7 +128,8 @@ void add_decompose_command(CLI::App& app) {
                   "Settle with the portable spring loop, the same settle on every processor (true), or the fastest "
                   "loop the processor has (false)")
       ->capture_default_str();
-  cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute, verlet) or auto")
+  cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute shaders, float32, finished on the CPU in double "
+                  "where it stops short of the tolerance) or auto (the CPU)")
       ->capture_default_str();
   cmd->add_option("--smooth", o.smooth_steps, "Smoothing passes along the fibres")->capture_default_str();
   cmd->add_option("--smooth-weight", o.smooth_weight, "Weight of each smoothing pass")->capture_default_str();

@@ -168,17 +168,17 @@ void run_settle(const SettleArgs& args) {
     gpu_options.polish = args.gpu_polish;
     const shaders::GpuSettleReport gpu = shaders::settle_gpu(context, system, options, gpu_options, shape_ptr);
     report = gpu;
-    if (gpu.stalled && gpu.polish_iterations > 0)
+    if (gpu.polished)
       spdlog::info("the residual stopped falling at {:.3g} on the GPU (float32 precision); the CPU polished in "
                    "double: {} iterations to {:.3g}, {:.3f} s", gpu.gpu_residual, gpu.polish_iterations,
                    gpu.residual, gpu.polish_seconds);
     else if (gpu.stalled)
-      spdlog::warn("the residual stopped falling at {:.3g} on the GPU (float32 precision); use --gpu-polish true or "
-                   "--backend cpu for a tolerance below it", gpu.residual);
+      spdlog::warn("the residual stopped falling at {:.3g} on the GPU (float32 precision); use --gpu-polish "
+                   "true (with iterations left of --max-iterations) or --backend cpu for a tolerance below it", gpu.residual);
     gpu_info = {{"renderer", gpu.renderer}, {"gl_version", gpu.gl_version}, {"hardware", gpu.hardware},
                 {"platform", context.platform()}, {"readback_seconds", gpu.readback_seconds},
                 {"gpu_bytes", gpu.gpu_bytes}, {"check_interval", args.check_interval}, {"stalled", gpu.stalled},
-                {"gpu_residual", gpu.gpu_residual}, {"polish", args.gpu_polish},
+                {"gpu_residual", gpu.gpu_residual}, {"polish", args.gpu_polish}, {"polished", gpu.polished},
                 {"polish_iterations", gpu.polish_iterations}, {"polish_seconds", gpu.polish_seconds}};
 #endif
   }

@@ -648,8 +648,11 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                                                                                anchor_spring.empty() ? &shape : nullptr);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
-        gpu_fields = {{"gpu_residual", gpu_report.gpu_residual}, {"stalled", gpu_report.stalled},
-                      {"polish_iterations", gpu_report.polish_iterations}, {"polish_seconds", gpu_report.polish_seconds}};
+        gpu_fields = {{"gpu_residual", gpu_report.gpu_residual},
+                      {"stalled", gpu_report.stalled},
+                      {"polished", gpu_report.polished},
+                      {"polish_iterations", gpu_report.polish_iterations},
+                      {"polish_seconds", gpu_report.polish_seconds}};
   #else
         (void)gpu;
         throw Error(ErrorCode::gpu, "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "

@@ -87,10 +87,11 @@ struct DecomposeOptions {
   /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000
   /// iterations).
   springs::SettleOptions settle = default_settle();
-  /// Compute backend of the settle: "cpu", "gl" (OpenGL compute shaders in float32, the static
-  /// solver as its momentum method; a solve that float32 stops short of its tolerance is
-  /// finished on the CPU in double, shaders::GpuSettleOptions::polish) or "auto" (the GPU only
-  /// for a Verlet settle of a large lattice on a hardware device) (default cpu).
+  /// Compute backend of the settles: "cpu", "gl" (OpenGL compute shaders in float32: Verlet, or
+  /// the static solver as its momentum method; a solve that float32 stops short of its
+  /// tolerance is finished on the CPU in double, shaders::GpuSettleOptions::polish, always on
+  /// here) or "auto" (the CPU: a decomposition's lattice is too small for the GPU to pay off,
+  /// docs/decompose.md step 5) (default cpu).
   std::string backend = "cpu";
   int cast_rounds = 2;          ///< rounds of "fibre ends cast onto the surface under the layer
                                 ///< next to them, settle again" (step 6b), >= 0 (default 2;

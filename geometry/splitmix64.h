@@ -1,8 +1,9 @@
 #pragma once
-// The SplitMix64 finaliser (Steele, Lea and Flood 2014, "Fast splittable pseudorandom number
-// generators", OOPSLA): a fixed 64-bit mix, one serves every place that derives numbers from an
-// index or a seed (the defect injector's seeds, the coarse start's offsets), so the same input
-// gives the same bits on every run and thread count.
+/// \file splitmix64.h
+/// The SplitMix64 finaliser (Steele, Lea and Flood 2014, "Fast splittable pseudorandom number
+/// generators", OOPSLA): a fixed 64-bit mix, one serves every place that derives numbers from an
+/// index or a seed (the defect injector's seeds, the coarse start's offsets), so the same input
+/// gives the same bits on every run and thread count.
 
 #include <cstdint>
 

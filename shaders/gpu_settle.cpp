@@ -822,14 +822,17 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     system.positions[i] = back.positions[i];
   }
   report.gpu_residual = residual;
-  if (report.stalled && gpu_options.polish) {
+  if (report.stalled && gpu_options.polish && report.iterations < options.max_iterations) {
     // float32 stopped above the tolerance: the CPU finishes from here in double (the static
-    // equilibrium is the Verlet solver's rest state too).
+    // equilibrium is the Verlet solver's rest state too), within the iterations left.
+    solver.reset();  // the GPU's buffers are not needed any more
     springs::SettleOptions cpu = options;
     cpu.solver = springs::SolverKind::static_equilibrium;
     cpu.static_method = springs::StaticMethod::momentum;
     cpu.coarse_start_points = 0;  // start from the GPU's positions, not from a coarse lattice
+    cpu.max_iterations = options.max_iterations - report.iterations;
     const springs::SettleReport polished = springs::settle(system, cpu, shape);
+    report.polished = true;
     report.polish_iterations = polished.iterations;
     report.polish_seconds = polished.setup_seconds + polished.seconds;
     report.residual = polished.residual;

@@ -72,8 +72,8 @@ struct GpuSettleOptions {
                                ///< >= 0 (default 1e-4)
   bool polish = true;  ///< when the float32 solve stalls above the tolerance (stall_checks), the
                        ///< CPU finishes it in double from the GPU's positions: the static solver's
-                       ///< momentum method, without a coarse start, to the same tolerance and
-                       ///< iteration limit (default true). Why: where the springs are stretched far
+                       ///< momentum method, without a coarse start, to the same tolerance, within
+                       ///< the iterations the GPU left of max_iterations (default true). Why: where the springs are stretched far
                        ///< beyond their rest lengths (a decomposition's tension rest: about 1700
                        ///< times) the residual is measured against forces of stiffness x rest, and
                        ///< float32 stops at 0.03-0.16 of it (the opendihu left biceps; the CPU
@@ -143,8 +143,12 @@ struct GpuSettleReport : springs::SettleReport {
   double readback_seconds = 0.0;  ///< final readback
   std::size_t gpu_bytes = 0;   ///< buffers and textures
   bool stalled = false;        ///< stopped because the residual no longer fell (stall_checks)
+  // The CPU polish (GpuSettleOptions::polish). After one, residual and converged are the
+  // polish's; iterations, seconds, setup_seconds, residual_history, solver and dt stay the GPU's.
   double gpu_residual = 0.0;   ///< relative residual where the GPU stopped (before any polish)
-  int polish_iterations = 0;   ///< CPU iterations of the double-precision polish (0: none ran)
+  bool polished = false;       ///< the CPU polish ran (it may take 0 iterations: the double
+                               ///< residual at the GPU's positions can already be within tolerance)
+  int polish_iterations = 0;   ///< its iterations
   double polish_seconds = 0.0; ///< its wall time, set-up included
 };
 

@@ -225,7 +225,8 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
     const double amplitude = rest_count > 0 ? options.coarse_start_perturbation * rest_sum / rest_count : 0.0;
     for (long p = 0; p < n; ++p)
       if (!system.fixed[p])
-        for (int c = 0; c < 3; ++c) system.positions[p][c] += amplitude * (splitmix64_unit(3 * static_cast<std::uint64_t>(p) + c) - 0.5);
+        for (int c = 0; c < 3; ++c)
+          system.positions[p][c] += amplitude * (splitmix64_unit(3 * static_cast<std::uint64_t>(p) + c) - 0.5);
   }
   report.seconds = std::chrono::duration<double>(clock::now() - t0).count();
   return report;

@@ -137,6 +137,7 @@ TEST_CASE("fascicle settle --backend gl polishes a float32 stall on the CPU (--g
   REQUIRE(raw["gpu"]["stalled"] == true);  // the premise
   CHECK(raw["converged"] == false);
   CHECK(raw["gpu"]["polish"] == false);
+  CHECK(raw["gpu"]["polished"] == false);
   CHECK(raw["gpu"]["polish_iterations"] == 0);
   CHECK(raw["residual"].get<double>() > 1e-4);
   REQUIRE(test::run_command(base + " --backend gl -o " + dir.file("polished.txt") + " --report " + dir.file("polished.json")) == 0);
@@ -144,6 +145,7 @@ TEST_CASE("fascicle settle --backend gl polishes a float32 stall on the CPU (--g
   INFO(polished.dump());
   CHECK(polished["gpu"]["stalled"] == true);
   CHECK(polished["gpu"]["polish"] == true);
+  CHECK(polished["gpu"]["polished"] == true);
   CHECK(polished["gpu"]["polish_iterations"].get<int>() > 0);
   CHECK(polished["gpu"]["gpu_residual"].get<double>() > 1e-4);
   CHECK(polished["converged"] == true);
