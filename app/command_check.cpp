@@ -122,6 +122,10 @@ void add_check_command(CLI::App& app) {
   cmd->add_option("--samples", args->options.coverage_samples, "Volume samples for the coverage figures")
       ->capture_default_str();
   cmd->add_option("--seed", args->options.seed, "Seed of the volume samples")->capture_default_str();
+  cmd->add_option("--max-crossing-segments", args->options.max_crossing_segments,
+                  "Judge the fibre segments that leave the muscle between their points: at most this many "
+                  "(-1: report them without judging)")
+      ->capture_default_str();
   cmd->add_option("--end-tolerance", args->options.end_tolerance,
                   "Fibre ends may lie this far outside the surface (fraction of the diagonal)")
       ->capture_default_str();

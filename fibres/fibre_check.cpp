@@ -258,6 +258,8 @@ void CheckOptions::validate() const {
   if (!(max_coverage_p95 > 0.0) || !std::isfinite(max_coverage_p95))
     bad("max_coverage_p95", max_coverage_p95, "> 0 and finite");
   if (!(max_attachment > 0.0) || !std::isfinite(max_attachment)) bad("max_attachment", max_attachment, "> 0 and finite");
+  if (max_crossing_segments < -1) bad("max_crossing_segments", static_cast<double>(max_crossing_segments), ">= -1");
+  if (excursion_samples < 1 || excursion_samples > 10000) bad("excursion_samples", excursion_samples, "in [1, 10000]");
   if (outside_listed < 0) bad("outside_listed", outside_listed, ">= 0");
 }
 
@@ -345,6 +347,53 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     }
   report.outside = report.points - report.inside_points;
   report.inside_fraction = static_cast<double>(report.inside_points) / static_cast<double>(report.points);
+
+  // ---- segments ----
+  // A segment crosses the surface when one of its points failed the inside test, or when a ray
+  // from its midpoint towards either end hits the surface before that end (minus the end
+  // tolerance where the end is a fibre end, which lies on the surface by design).
+  {
+    std::vector<std::vector<CrossingSegment>> crossing(fibres.lines.size());
+    tbb::parallel_for(std::size_t(0), fibres.lines.size(), [&](std::size_t f) {
+      const auto& line = fibres.lines[f];
+      const std::size_t last = line.size() - 1;
+      for (std::size_t k = 0; k < last; ++k) {
+        const Vec3& a = line[k];
+        const Vec3& b = line[k + 1];
+        bool crosses = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1];
+        const Vec3 m = 0.5 * (a + b);
+        const double half = 0.5 * (b - a).norm();
+        Vec3 hit;
+        for (int side = 0; side < 2 && !crosses && half > 0.0; ++side) {
+          const bool fibre_end = side == 0 ? k == 0 : k + 1 == last;
+          const double margin = fibre_end ? end_tolerance : 0.0;
+          if (margin >= half) continue;
+          const Vec3 d = (side == 0 ? a : b) - m;
+          crosses = query.first_hit(m, d, 1.0 - margin / half, hit);
+        }
+        if (!crosses) continue;
+        CrossingSegment c;
+        c.fibre = static_cast<int>(f);
+        c.segment = static_cast<int>(k);
+        const int n = options.excursion_samples;
+        for (int i = 1; i <= n; ++i) {
+          const Vec3 p = a + (static_cast<double>(i) / (n + 1)) * (b - a);
+          if (query.side(p) == Side::outside) c.excursion = std::max(c.excursion, query.closest_point(p).distance);
+        }
+        crossing[f].push_back(c);
+      }
+    });
+    report.segments = static_cast<long>(total_points - fibres.lines.size());
+    for (const auto& list : crossing)
+      for (const CrossingSegment& c : list) {
+        ++report.crossing_segments;
+        report.max_segment_excursion = std::max(report.max_segment_excursion, c.excursion);
+        if (static_cast<int>(report.crossing_examples.size()) < options.outside_listed)
+          report.crossing_examples.push_back(c);
+      }
+    report.segment_inside_fraction =
+        report.segments > 0 ? 1.0 - static_cast<double>(report.crossing_segments) / static_cast<double>(report.segments) : 1.0;
+  }
 
   // ---- lattice cells ----
   const FibreGrid grid = fibre_grid(fibres);
@@ -438,6 +487,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   // ---- attachment ----
   const double length = muscle_length(muscle);
   report.attachment.muscle_length = length;
+  report.max_segment_excursion_relative = length > 0.0 ? report.max_segment_excursion / length : 0.0;
   report.attachment.origin_points = static_cast<long>(areas.origin.points.size());
   report.attachment.insertion_points = static_cast<long>(areas.insertion.points.size());
   {
@@ -465,6 +515,8 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   if (!(report.coverage.p95 <= options.max_coverage_p95)) report.failed.push_back("coverage");
   if (!(std::max(report.attachment.origin_max, report.attachment.insertion_max) <= options.max_attachment))
     report.failed.push_back("attachment");
+  if (options.max_crossing_segments >= 0 && report.crossing_segments > options.max_crossing_segments)
+    report.failed.push_back("segments");
   report.pass = report.failed.empty();
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
@@ -477,6 +529,9 @@ nlohmann::json CheckReport::to_json() const {
                             {"point", o.point},
                             {"position", {o.position.x(), o.position.y(), o.position.z()}},
                             {"distance_to_surface", o.distance}});
+  nlohmann::json crossing_list = nlohmann::json::array();
+  for (const CrossingSegment& c : crossing_examples)
+    crossing_list.push_back({{"fibre", c.fibre}, {"segment", c.segment}, {"excursion", c.excursion}});
   nlohmann::json inverted_list = nlohmann::json::array();
   for (const auto& c : inverted_examples) inverted_list.push_back({{"r", c[0]}, {"s", c[1]}, {"k", c[2]}});
   return {
@@ -486,6 +541,12 @@ nlohmann::json CheckReport::to_json() const {
       {"inside_points", inside_points},
       {"outside_points", outside},
       {"outside_examples", outside_list},
+      {"segments", segments},
+      {"crossing_segments", crossing_segments},
+      {"segment_inside_fraction", segment_inside_fraction},
+      {"max_segment_excursion", max_segment_excursion},
+      {"max_segment_excursion_relative", max_segment_excursion_relative},
+      {"crossing_examples", crossing_list},
       {"lattice", lattice},
       {"lattice_nr", lattice_nr},
       {"lattice_ns", lattice_ns},
@@ -522,6 +583,8 @@ nlohmann::json CheckReport::to_json() const {
         {"max_inverted_cells", thresholds.max_inverted_cells},
         {"max_coverage_p95", thresholds.max_coverage_p95},
         {"max_attachment", thresholds.max_attachment},
+        {"max_crossing_segments", thresholds.max_crossing_segments},
+        {"excursion_samples", thresholds.excursion_samples},
         {"end_tolerance", thresholds.end_tolerance},
         {"coverage_samples", thresholds.coverage_samples},
         {"seed", thresholds.seed}}},
@@ -554,6 +617,14 @@ std::string CheckReport::to_table() const {
   std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "attachment_max",
                 (fmt_double(attachment.origin_max) + " / " + fmt_double(attachment.insertion_max)).c_str(),
                 ("<= " + fmt_double(thresholds.max_attachment)).c_str(), verdict("attachment"));
+  out += line;
+  const bool judged = thresholds.max_crossing_segments >= 0;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "crossing_segs",
+                (std::to_string(crossing_segments) + " of " + std::to_string(segments) + ", out " +
+                 fmt_double(max_segment_excursion))
+                    .c_str(),
+                judged ? ("<= " + std::to_string(thresholds.max_crossing_segments)).c_str() : "(reported)",
+                judged ? verdict("segments") : "-");
   out += line;
   out += "fibres " + std::to_string(fibres) + ", points " + std::to_string(points) + ", ideal spacing " +
          fmt_double(coverage.ideal_spacing) + " (" + std::to_string(coverage.samples) + " samples)\n";

@@ -22,6 +22,13 @@
 ///   its last point to the nearest insertion-area point, divided by the muscle length (extent of
 ///   the muscle's vertices along their principal axis, as morph/attachments.cpp defines the
 ///   automatic areas). Pass when the largest of both is <= max_attachment (0.02).
+/// - segments: a fibre is a polyline, so the check also asks whether each segment between two
+///   consecutive points stays inside: a segment "crosses" when the surface cuts it (a ray test
+///   from its midpoint towards both ends, Moeller-Trumbore through the query's hierarchy; hits
+///   within `end_tolerance` of a fibre end point do not count, as that point lies on the surface)
+///   or when one of its points failed the inside test. How far a crossing segment goes out is
+///   sampled (max_segment_excursion). Reported always; judged only when max_crossing_segments
+///   >= 0 (default -1: not judged, as the inside criterion above is the point test).
 /// Length spread and the largest turning angle are reported, not judged.
 
 #include "geometry/mesh.h"
@@ -56,13 +63,19 @@ struct CheckOptions {
   /// Pass threshold: largest acceptable attachment distance, as a fraction of the muscle length
   /// (default 0.02).
   double max_attachment = 0.02;
-  /// How many outside points (and inverted cells) the report lists (default 10); the counts
-  /// cover all of them.
+  /// Pass threshold: largest acceptable number of crossing segments (segments that leave the
+  /// muscle between their points); -1 (default) reports them without judging.
+  long max_crossing_segments = -1;
+  /// Points sampled along each crossing segment to measure how far it goes out (default 32).
+  int excursion_samples = 32;
+  /// How many outside points (and inverted cells, crossing segments) the report lists (default
+  /// 10); the counts cover all of them.
   int outside_listed = 10;
 
   /// Throws OptionError naming the first field out of range (coverage_samples not in [1, 1e8],
   /// end_tolerance < 0, min_inside_fraction outside [0, 1], max_inverted_cells < 0,
-  /// max_coverage_p95 or max_attachment <= 0 or not finite, outside_listed < 0).
+  /// max_coverage_p95 or max_attachment <= 0 or not finite, max_crossing_segments < -1,
+  /// excursion_samples not in [1, 10000], outside_listed < 0).
   void validate() const;
 };
 
@@ -72,6 +85,14 @@ struct OutsidePoint {
   int point = 0;                 ///< point index along the fibre
   Vec3 position = Vec3::Zero();  ///< mesh units
   double distance = 0.0;         ///< distance to the surface, mesh units
+};
+
+/// A fibre segment (points `segment` and `segment + 1`) that leaves the muscle.
+struct CrossingSegment {
+  int fibre = 0;           ///< line index in the Polylines
+  int segment = 0;         ///< index of its first point along the fibre
+  double excursion = 0.0;  ///< largest sampled distance outside the surface, mesh units (0 when
+                           ///< no sample fell outside: the segment only grazes the surface)
 };
 
 /// Where the poorly covered volume is: the samples farther than `threshold` ideal spacings from
@@ -119,7 +140,7 @@ struct LengthFigures {
 };
 
 /// Result of check_fibres. `pass` is true when no criterion failed; `failed` names the failed
-/// ones ("inside", "inverted_cells", "coverage", "attachment").
+/// ones ("inside", "inverted_cells", "coverage", "attachment", "segments").
 struct CheckReport {
   long fibres = 0;                        ///< fibre count F
   long points = 0;                        ///< fibre points in all
@@ -127,6 +148,13 @@ struct CheckReport {
   double inside_fraction = 0.0;           ///< inside_points / points
   long outside = 0;                       ///< points - inside_points
   std::vector<OutsidePoint> outside_examples;  ///< the first options.outside_listed of them
+  long segments = 0;                      ///< segments in all (points - fibres)
+  long crossing_segments = 0;             ///< segments that leave the muscle (see the file comment)
+  double segment_inside_fraction = 0.0;   ///< 1 - crossing_segments / segments
+  /// Largest excursion of a crossing segment outside the surface (mesh units, sampled) and the
+  /// same as a fraction of the muscle length (attachment.muscle_length).
+  double max_segment_excursion = 0.0, max_segment_excursion_relative = 0.0;
+  std::vector<CrossingSegment> crossing_examples;  ///< the first options.outside_listed of them
   bool lattice = false;                   ///< the fibres carry a lattice (fibre_r, fibre_s)
   int lattice_nr = 0, lattice_ns = 0;     ///< lattice index ranges (0 when not a lattice)
   long cells = 0;                         ///< lattice cells checked (0 when not a lattice)

@@ -25,6 +25,7 @@ using fascicle::test::TempDir;
 
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
 constexpr double kSize = 10.0;  // box: x in [-kSize, kSize], y and z in [-kSize/2, kSize/2]
 
 /// The box [-s, s] x [-s/2, s/2]^2 (a cube stretched along x), 2n quads per cube edge so that
@@ -100,9 +101,67 @@ TEST_CASE("straight lattice fibres in a box pass with the figures geometry predi
     CHECK(report.length.mean == Approx(2 * kSize).epsilon(1e-12));
     CHECK(report.length.cv == Approx(0.0).margin(1e-9));
     CHECK(report.max_turning_angle_deg == Approx(0.0).margin(1e-6));
+    // Straight segments in a box never leave it; the ends lie on the end faces (within the end
+    // tolerance), which does not make the end segments cross.
+    CHECK(report.segments == n * n * 10);
+    CHECK(report.crossing_segments == 0);
+    CHECK(report.segment_inside_fraction == 1.0);
+    CHECK(report.max_segment_excursion == 0.0);
     CHECK(report.pass);
     CHECK(report.failed.empty());
   }
+}
+
+TEST_CASE("a segment between two inside points that cuts a bend leaves the muscle", "[fibres][check]") {
+  // A half ring: tube radius 2 round an arc of radius 10. A fibre along the axis with points
+  // 1 degree apart stays inside; with three points (0, 90, 180 degrees, 0.01 rad in from the
+  // caps) each chord cuts the inner wall: its middle is 10 cos(theta / 2) from the centre, theta
+  // the chord's angle, inside the inner wall at radius 8 by about 0.894.
+  const double R = 10.0, r = 2.0;
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  auto arc = [&](int points) {
+    std::vector<Vec3> line;
+    for (int k = 0; k < points; ++k) {
+      const double a = 0.01 + (kPi - 0.02) * k / (points - 1);
+      line.emplace_back(R * std::cos(a), R * std::sin(a), 0.0);
+    }
+    return line;
+  };
+  Polylines fibres;
+  fibres.lines = {arc(181), arc(3)};
+  const Attachments areas = automatic_attachments(tube);
+  CheckReport report = check_fibres(fibres, tube, areas);
+  CHECK(report.inside_fraction == 1.0);  // every point is inside
+  CHECK(report.segments == 180 + 2);
+  CHECK(report.crossing_segments == 2);
+  CHECK(report.segment_inside_fraction == Approx(1.0 - 2.0 / 182).epsilon(1e-12));
+  REQUIRE(report.crossing_examples.size() == 2);
+  for (int k = 0; k < 2; ++k) {
+    CHECK(report.crossing_examples[static_cast<std::size_t>(k)].fibre == 1);
+    CHECK(report.crossing_examples[static_cast<std::size_t>(k)].segment == k);
+  }
+  const double chord_middle = R * std::cos((kPi / 2 - 0.01) / 2);
+  CHECK(report.max_segment_excursion == Approx((R - r) - chord_middle).margin(0.02));
+  CHECK(report.max_segment_excursion_relative ==
+        Approx(report.max_segment_excursion / report.attachment.muscle_length).epsilon(1e-12));
+  CHECK_FALSE(has_failed(report, "segments"));  // reported, not judged by default
+
+  CheckOptions judged;
+  judged.max_crossing_segments = 1;
+  report = check_fibres(fibres, tube, areas, judged);
+  CHECK(has_failed(report, "segments"));
+  CHECK(report.to_table().find("crossing_segs") != std::string::npos);
+  judged.max_crossing_segments = 2;
+  CHECK_FALSE(has_failed(check_fibres(fibres, tube, areas, judged), "segments"));
+
+  // A point outside makes both its segments cross.
+  Polylines dense;
+  dense.lines = {arc(181)};
+  dense.lines[0][90].z() = 3 * r;
+  report = check_fibres(dense, tube, areas);
+  CHECK(report.outside == 1);
+  CHECK(report.crossing_segments == 2);
+  CHECK(report.max_segment_excursion > 0.0);
 }
 
 TEST_CASE("a fibre point outside the muscle fails the inside criterion", "[fibres][check]") {
@@ -364,6 +423,12 @@ TEST_CASE("bad options and inputs are refused", "[fibres][check]") {
   options = {};
   options.max_attachment = 0;
   CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.max_crossing_segments = -2;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.excursion_samples = 0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
 
   CHECK_THROWS_AS(check_fibres(Polylines{}, box, areas), InputError);
   Polylines single = fibres;
@@ -405,6 +470,11 @@ TEST_CASE("fascicle check prints a table or JSON and writes the report and exits
   CHECK(printed.at("lattice").get<bool>());
   CHECK(printed.at("muscle_repaired").get<bool>() == false);
   CHECK(printed.at("pass").get<bool>());
+  CHECK(printed.at("crossing_segments").get<long>() == 0);
+  CHECK(printed.at("segments").get<long>() == 9 * 8);
+  CHECK(printed.at("thresholds").at("max_crossing_segments").get<long>() == -1);
+  REQUIRE(run("check " + fibres + " " + mesh + " --json --strict --max-crossing-segments 0", out) == 0);
+  CHECK(nlohmann::json::parse(read_text(out)).at("thresholds").at("max_crossing_segments").get<long>() == 0);
 
   // Landmark files replace the automatic areas.
   const double origin_x = good.lines[0].front().x();

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include <unistd.h>
 
@@ -602,8 +603,19 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   std::getline(summary, header);
   std::getline(summary, a);
   std::getline(summary, b);
-  CHECK(header == "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,error");
+  CHECK(header ==
+        "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,crossing_segments,"
+        "segment_excursion,error");
   CHECK(a.rfind("capsule,", 0) == 0);
+  {
+    // The segment figures of the report's quality section: a count and a fraction of the length.
+    std::vector<std::string> fields;
+    std::stringstream row(a);
+    for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
+    REQUIRE(fields.size() >= 10);
+    CHECK(std::stol(fields[8]) >= 0);
+    CHECK(std::stod(fields[9]) >= 0.0);
+  }
   CHECK(b.rfind("sub/broken,failed,5,", 0) == 0);
   CHECK_FALSE(std::getline(summary, extra));
   // Resumable: a second run redoes nothing (the fibre file keeps its time stamp).
