@@ -131,6 +131,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute shaders, float32, finished on the CPU in double "
                   "where it stops short of the tolerance) or auto (the CPU)")
       ->capture_default_str();
+  cmd->add_option("--contain-segments", o.contain_segments,
+                  "Move fibre segments that leave the muscle between their points back inside (true) or leave them "
+                  "(false)")
+      ->capture_default_str();
   cmd->add_option("--smooth", o.smooth_steps, "Smoothing passes along the fibres")->capture_default_str();
   cmd->add_option("--smooth-weight", o.smooth_weight, "Weight of each smoothing pass")->capture_default_str();
   cmd->add_option("--sphere-method", args->sphere_method, "Sphere map: tutte (default) or relax (the thesis's)")

@@ -372,6 +372,7 @@ void DecomposeOptions::validate() const {
   placement.validate();
   settle.validate();
   untangle.validate();
+  segments.validate();
   // Decompose's own cap on the fibre count (below the lattice's), then the lattice's checks of
   // fibres, resolution and their product.
   if (fibres > 1'000'000) throw OptionError("fibres: at most 1000000, got " + std::to_string(fibres));
@@ -743,6 +744,13 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     }
   }
   report.smoothing = {{"steps", options.smooth_steps}, {"weight", options.smooth_weight}, {"reverted", reverted}};
+
+  // Segments that leave the muscle between their points (step 10), after every other move.
+  if (options.contain_segments) {
+    const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
+    report.containment["segments"] =
+        contain_segments(lattice, system, query, end_tolerance, options.segments).to_json();
+  }
 
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
   std::vector<std::vector<Vec3>> lines;

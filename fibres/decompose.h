@@ -33,6 +33,7 @@
 ///     attachment distances.
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
+#include "fibres/contain_segments.h"
 #include "fibres/fibre_check.h"
 #include "fibres/landmark_strip.h"
 #include "fibres/template_placement.h"
@@ -133,6 +134,11 @@ struct DecomposeOptions {
   /// this value, when the first result's folds outlasted the untangling with the surface ring
   /// free (LatticeUntangleReport::free_ring_tried; LHDL psoas: 29 cells, retries 70 and 65).
   long retry_max_inverted_cells = 50;
+  /// Move the fibre segments that leave the muscle between their points back inside (step 10,
+  /// fibres/contain_segments.h) (default true).
+  bool contain_segments = true;
+  /// Those moves: sweeps, margin, samples, largest shift (defaults: fibres/contain_segments.h).
+  SegmentContainmentOptions segments;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
   CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)

@@ -191,8 +191,7 @@ double percentile(std::vector<double> values, double q) {
 /// same sign as the lattice's frame (r, s, fibre) when the cell is not folded.
 void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int listed, CheckReport& report) {
   const auto& kuhn = kuhn_tetrahedra();
-  std::vector<std::array<double, 6>> volumes;
-  std::vector<std::array<double, 6>> scales;
+  std::vector<std::array<TetVolume, 6>> volumes;
   std::vector<std::array<int, 3>> where;  // (r, s, k) of each cell
   for (int s = 0; s + 1 < grid.ns; ++s)
     for (int r = 0; r + 1 < grid.nr; ++r) {
@@ -203,32 +202,24 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int li
         std::array<Vec3, 8> cell;  // index a + 2b + 4c
         for (int c = 0; c < 2; ++c)
           for (int q = 0; q < 4; ++q) cell[static_cast<std::size_t>(q + 4 * c)] = fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
-        std::array<double, 6> vol{}, scale{};
-        for (std::size_t t = 0; t < 6; ++t) {
-          const Vec3& v0 = cell[static_cast<std::size_t>(kuhn[t][0])];
-          const Vec3 a = cell[static_cast<std::size_t>(kuhn[t][1])] - v0, b = cell[static_cast<std::size_t>(kuhn[t][2])] - v0,
-                     c = cell[static_cast<std::size_t>(kuhn[t][3])] - v0;
-          vol[t] = a.dot(b.cross(c)) / 6.0;
-          scale[t] = a.norm() * b.norm() * c.norm() / 6.0;
-        }
-        volumes.push_back(vol);
+        std::array<TetVolume, 6> tets{};
+        for (std::size_t t = 0; t < 6; ++t)
+          tets[t] = tet_volume(cell[static_cast<std::size_t>(kuhn[t][0])], cell[static_cast<std::size_t>(kuhn[t][1])],
+                               cell[static_cast<std::size_t>(kuhn[t][2])], cell[static_cast<std::size_t>(kuhn[t][3])]);
+        volumes.push_back(tets);
         where.push_back({r, s, k});
-        scales.push_back(scale);
       }
     }
   report.cells = static_cast<long>(volumes.size());
   double total = 0.0;
   for (const auto& v : volumes)
-    for (double x : v) total += x;
+    for (const TetVolume& x : v) total += x.volume;
   const double reference = total >= 0.0 ? 1.0 : -1.0;
   long inverted = 0;
   for (std::size_t c = 0; c < volumes.size(); ++c) {
     bool bad = false;
-    for (int t = 0; t < 6; ++t) {
-      const double v = reference * volumes[c][static_cast<std::size_t>(t)];
-      // Flat: below 1e-12 of the volume its edges could span (round-off level), or zero edges.
-      if (!(v > 1e-12 * scales[c][static_cast<std::size_t>(t)])) bad = true;
-    }
+    for (const TetVolume& t : volumes[c])
+      if (!t.good(reference)) bad = true;  // folded, or flat (round-off level, zero edges)
     inverted += bad ? 1 : 0;
     if (bad && static_cast<int>(report.inverted_examples.size()) < listed) report.inverted_examples.push_back(where[c]);
   }
@@ -275,6 +266,34 @@ double muscle_length(const TriangleMesh& muscle) {
     hi = std::max(hi, t);
   }
   return hi - lo;
+}
+
+bool segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, double margin_a, double margin_b) {
+  const Vec3 m = 0.5 * (a + b);
+  const double half = 0.5 * (b - a).norm();
+  if (!(half > 0.0)) return false;
+  Vec3 hit;
+  for (int side = 0; side < 2; ++side) {
+    const double margin = side == 0 ? margin_a : margin_b;
+    if (margin >= half) continue;
+    if (query.first_hit(m, (side == 0 ? a : b) - m, 1.0 - margin / half, hit)) return true;
+  }
+  return false;
+}
+
+double segment_excursion(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int samples, double* t, Vec3* closest) {
+  double deepest = 0.0;
+  for (int i = 1; i <= samples; ++i) {
+    const double u = static_cast<double>(i) / (samples + 1);
+    const Vec3 p = a + u * (b - a);
+    if (query.side(p) != Side::outside) continue;
+    const SurfacePoint c = query.closest_point(p);
+    if (!(c.distance > deepest)) continue;
+    deepest = c.distance;
+    if (t) *t = u;
+    if (closest) *closest = c.position;
+  }
+  return deepest;
 }
 
 CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const Attachments& areas,
@@ -360,26 +379,13 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       for (std::size_t k = 0; k < last; ++k) {
         const Vec3& a = line[k];
         const Vec3& b = line[k + 1];
-        bool crosses = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1];
-        const Vec3 m = 0.5 * (a + b);
-        const double half = 0.5 * (b - a).norm();
-        Vec3 hit;
-        for (int side = 0; side < 2 && !crosses && half > 0.0; ++side) {
-          const bool fibre_end = side == 0 ? k == 0 : k + 1 == last;
-          const double margin = fibre_end ? end_tolerance : 0.0;
-          if (margin >= half) continue;
-          const Vec3 d = (side == 0 ? a : b) - m;
-          crosses = query.first_hit(m, d, 1.0 - margin / half, hit);
-        }
+        const bool crosses = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
+                             segment_leaves(query, a, b, k == 0 ? end_tolerance : 0.0, k + 1 == last ? end_tolerance : 0.0);
         if (!crosses) continue;
         CrossingSegment c;
         c.fibre = static_cast<int>(f);
         c.segment = static_cast<int>(k);
-        const int n = options.excursion_samples;
-        for (int i = 1; i <= n; ++i) {
-          const Vec3 p = a + (static_cast<double>(i) / (n + 1)) * (b - a);
-          if (query.side(p) == Side::outside) c.excursion = std::max(c.excursion, query.closest_point(p).distance);
-        }
+        c.excursion = segment_excursion(query, a, b, options.excursion_samples);
         crossing[f].push_back(c);
       }
     });

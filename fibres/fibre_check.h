@@ -181,6 +181,18 @@ struct CheckReport {
 /// principal axis (largest eigenvector of their covariance), mesh units. 0 for an empty mesh.
 double muscle_length(const TriangleMesh& muscle);
 
+/// Whether the segment [a, b] leaves the closed surface of `query`: a ray from its midpoint
+/// towards each end hits the surface before that end, where hits within `margin_a` of a (and
+/// `margin_b` of b) do not count (a fibre end lies on the surface). Does not test a and b
+/// themselves.
+bool segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, double margin_a, double margin_b);
+
+/// The deepest of `samples` points spaced evenly inside [a, b] (ends excluded) that is outside
+/// the surface: its distance to the surface (0 when none is outside); its parameter along the
+/// segment into `t` and its closest surface point into `closest` when given and one is outside.
+double segment_excursion(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int samples, double* t = nullptr,
+                         Vec3* closest = nullptr);
+
 /// Checks `fibres` against the closed muscle surface `muscle` and its attachment `areas`.
 /// - fibres: polylines in mesh units, each ordered from origin to insertion; with the cell
 ///   arrays fibre_r / fibre_s when they come from a lattice (then cells are checked).

@@ -52,6 +52,11 @@ FibreGrid fibre_grid(const Polylines& fibres) {
   return grid;
 }
 
+TetVolume tet_volume(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Vec3& v3) {
+  const Vec3 a = v1 - v0, b = v2 - v0, c = v3 - v0;
+  return {a.dot(b.cross(c)) / 6.0, a.norm() * b.norm() * c.norm() / 6.0};
+}
+
 const std::array<std::array<int, 4>, 6>& kuhn_tetrahedra() {
   // Axis orders (0 = r, 1 = s, 2 = fibre); the last three are odd permutations, whose
   // tetrahedra have their two last corners swapped to be positive.

@@ -44,6 +44,16 @@ FibreGrid fibre_grid(const Polylines& fibres);
 /// is not folded (for the unit cube: +1/6 each).
 const std::array<std::array<int, 4>, 6>& kuhn_tetrahedra();
 
+/// A tetrahedron as the quality check measures it: signed volume (v1 - v0) . ((v2 - v0) x
+/// (v3 - v0)) / 6 and the volume its three edges from v0 could span, |v1 - v0| |v2 - v0| |v3 - v0| / 6.
+struct TetVolume {
+  double volume = 0.0, scale = 0.0;
+  /// Good (not folded, not flat) when the volume, times the lattice's orientation `reference`
+  /// (+1 or -1), is above 1e-12 of the scale (round-off level; zero edges are flat).
+  bool good(double reference) const { return reference * volume > 1e-12 * scale; }
+};
+TetVolume tet_volume(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Vec3& v3);
+
 /// Fibres with their lattice indices as cell data arrays `fibre_r`, `fibre_s`.
 /// `lines`, `r` and `s` have the same size (throws std::invalid_argument otherwise).
 Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector<int>& r, const std::vector<int>& s);

@@ -131,6 +131,33 @@ TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "
     CHECK(j.contains(key));
 }
 
+TEST_CASE("segments that cut a bend are moved back inside, and the check counts what is left", "[fibres][decompose]") {
+  // A tube bent through 150 degrees with 8 points per fibre: about 21 degrees of arc per
+  // segment, so the chords of the fibres next to the inner wall cut it (13 segments; with 6
+  // points the fibres fail the coverage criterion and the retries keep another attempt).
+  const TriangleMesh mesh = make_bent_tube(10.0, 2.0, 150.0 * 3.14159265358979323846 / 180.0, 32);
+  DecomposeOptions options;
+  options.resolution = 8;
+  options.contain_segments = false;
+  const Decomposition left = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(left.report.status == "ok");
+  CHECK_FALSE(left.report.containment.contains("segments"));
+  const long crossing = left.report.quality.crossing_segments;
+  CHECK(crossing > 0);
+  options.contain_segments = true;
+  const Decomposition contained = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(contained.report.status == "ok");
+  const nlohmann::json& segments = contained.report.containment.at("segments");
+  CHECK(segments.at("crossing_before").get<long>() == crossing);
+  CHECK(segments.at("moved").get<long>() > 0);
+  // The operation's count and the check's agree (the same rule, the same end tolerance).
+  CHECK(segments.at("crossing_after").get<long>() == contained.report.quality.crossing_segments);
+  CHECK(contained.report.quality.crossing_segments < crossing);
+  CHECK(contained.report.quality.inside_fraction == 1.0);
+  CHECK(contained.report.quality.inverted_cells <= left.report.quality.inverted_cells);
+  CHECK(contained.report.quality.max_segment_excursion <= left.report.quality.max_segment_excursion);
+}
+
 TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct solve's result", "[fibres][decompose]") {
   // 400 fibres x 20 points: 22 x 22 x 20 = 9680 lattice points, two multigrid levels.
   const TriangleMesh mesh = capsule();

@@ -1,0 +1,74 @@
+#pragma once
+/// \file contain_segments.h
+/// Step 10 of the decomposition (docs/decompose.md): fibre segments that leave the muscle between
+/// their two points are moved back inside.
+///
+/// Every lattice point is inside after the settle and the untangling, but a fibre is a polyline:
+/// where the surface curves between two of its points (the inner side of a bend, a groove) the
+/// straight segment between them can cut through it (fibres/fibre_check.h, crossing_segments).
+/// For each such segment of an interior lattice line (the output fibres), the deepest of its
+/// samples outside the surface is found with its closest surface point; the segment's free end
+/// points are moved along that direction so that the sample lies `margin` times its depth inside
+/// (both by the same shift when both are free; a fibre end is fixed, then the other point takes
+/// the shift divided by its weight at the sample), and again from the moved segment while it has
+/// a sample outside (a faceted wall), up to `steps` shifts. A move is kept only when the moved points are
+/// strictly inside, the segment and the fibre's segments next to it no longer leave the muscle,
+/// and no tetrahedron of the check's cells round the moved points (kuhn_tetrahedra(), oriented
+/// like the lattice) that was good turns inverted or flat; otherwise it is undone. Sweeps repeat
+/// over all fibres until one moves nothing or `sweeps` are done. Deterministic (serial, in
+/// lattice order).
+#include "morph/surface_query.h"
+#include "springs/lattice.h"
+#include "springs/spring_system.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace fascicle {
+
+/// Options of contain_segments().
+struct SegmentContainmentOptions {
+  /// Passes over all fibres; a pass that keeps no move ends the work (default 4).
+  int sweeps = 4;
+  /// How far inside the deepest sample of a segment is moved, as a fraction of how far outside it
+  /// was (default 0.25; a margin of a quarter of a local spacing instead kept 0 of 18 moves on
+  /// the LHDL gluteus maximus: the shifted points crossed their neighbours, folding cells).
+  double margin = 0.25;
+  /// Samples along a segment for its deepest excursion (default 16).
+  int samples = 16;
+  /// Shifts of one move: after each, the moved segment's deepest sample outside (if any) is
+  /// shifted in turn (default 4).
+  int steps = 4;
+  /// A shift longer than this many local spacings (the mean length of the springs at the
+  /// segment's points) is not tried (default 3): such a segment cuts a bend too deep for a
+  /// local move.
+  double max_shift = 3.0;
+  /// Largest patch of lines moved together (Chebyshev radius in lines round the segment's own;
+  /// 0: the line alone; default 3).
+  int patch_radius = 3;
+
+  /// Throws OptionError naming the first field out of range (sweeps < 0, margin not in (0, 10],
+  /// samples < 1, steps < 1, max_shift not > 0, patch_radius < 0).
+  void validate() const;
+};
+
+/// What contain_segments() did.
+struct SegmentContainmentReport {
+  long crossing_before = 0;  ///< fibre segments leaving the muscle on entry
+  long crossing_after = 0;   ///< and on return
+  long moved = 0;            ///< moves kept
+  long rejected = 0;         ///< moves undone (a test above failed) or not tried (max_shift)
+  int sweeps = 0;            ///< passes made
+  double seconds = 0.0;
+  nlohmann::json to_json() const;
+};
+
+/// Moves the interior lattice lines' segments that leave the surface of `query` back inside (see
+/// the file comment). `system` holds the lattice's positions and fixed flags (the first
+/// lattice.point_count() points; its springs give the local spacing); `end_tolerance` (mesh
+/// units) is the distance within which a fibre end's segment may touch the surface, as in the
+/// check. Only free lattice points move. Throws OptionError for bad options.
+SegmentContainmentReport contain_segments(const springs::Lattice& lattice, springs::SpringSystem& system,
+                                          const SurfaceQuery& query, double end_tolerance,
+                                          const SegmentContainmentOptions& options = {});
+
+}  // namespace fascicle

@@ -1,0 +1,162 @@
+// Fibre segments that leave the muscle between their points, moved back inside
+// (fibres/contain_segments.h), on a lattice bent round a half ring whose inner fibres' chords cut
+// the inner wall: the geometry says which segments cross and by how much.
+#include "fibres/contain_segments.h"
+#include "fibres/fibre_check.h"
+#include "fibres/fibre_grid.h"
+#include "morph/attachments.h"
+#include "geometry/errors.h"
+#include "geometry/primitives.h"
+#include "morph/surface_query.h"
+#include "springs/lattice.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace fascicle;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double R = 10.0, r = 2.0;  // the half ring: arc radius, tube radius
+
+/// A 6 x 6 x 4 lattice (4 x 4 interior lines, the fibres) laid round the half ring: point
+/// (i, j, k) at angle 0.01 + k (pi - 0.02) / 3, radial offset and height -w + 2 w i / 5 and
+/// -w + 2 w j / 5. Consecutive layers are 60 degrees apart, so a segment of the innermost
+/// fibres (radius R - 0.78) sags 9.22 (1 - cos 30 deg) = 1.24 towards the centre, past the inner
+/// wall (R - 1.84 to R - 1.98 at their heights); the other fibres' segments stay inside.
+springs::Lattice bent_lattice(double w = 1.3) {
+  springs::LatticeOptions options;
+  options.nr = 6;
+  options.ns = 6;
+  options.resolution = 4;
+  springs::Lattice lattice = springs::build_lattice(options);
+  REQUIRE(lattice.nx == 6);
+  REQUIRE(lattice.ny == 6);
+  REQUIRE(lattice.nz == 4);
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) {
+        const double a = 0.01 + k * (kPi - 0.02) / 3.0;
+        const double u = -w + 2.0 * w * i / 5.0, v = -w + 2.0 * w * j / 5.0;
+        lattice.system.positions[static_cast<std::size_t>(lattice.index(i, j, k))] =
+            Vec3((R + u) * std::cos(a), (R + u) * std::sin(a), v);
+      }
+  return lattice;
+}
+
+/// Fibre segments that leave the tube (the check's count) and inverted cells.
+CheckReport check(const springs::Lattice& lattice, const TriangleMesh& tube) {
+  // The interior lines, as the decomposition writes them.
+  std::vector<std::vector<Vec3>> lines;
+  std::vector<int> rs, ss;
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i) {
+      std::vector<Vec3> line;
+      for (int k = 0; k < lattice.nz; ++k) line.push_back(lattice.system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]);
+      lines.push_back(line);
+      rs.push_back(i - 1);
+      ss.push_back(j - 1);
+    }
+  const Polylines interior = lattice_fibres(std::move(lines), rs, ss);
+  CheckOptions options;
+  options.coverage_samples = 200;
+  return check_fibres(interior, tube, automatic_attachments(tube), options);
+}
+
+}  // namespace
+
+TEST_CASE("segments cutting the inner wall of a bend are moved back inside without folding a cell",
+          "[fibres][contain]") {
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  const SurfaceQuery query(tube);
+  springs::Lattice lattice = bent_lattice();
+  const CheckReport before = check(lattice, tube);
+  CHECK(before.inside_fraction == 1.0);
+  CHECK(before.inverted_cells == 0);
+  // The 4 innermost fibres (i = 1), 3 segments each.
+  CHECK(before.crossing_segments == 12);
+  for (const CrossingSegment& c : before.crossing_examples) CHECK(c.fibre % 4 == 0);
+
+  const std::vector<Vec3> start = lattice.system.positions;
+  const SegmentContainmentReport report = contain_segments(lattice, lattice.system, query, 0.0);
+  CHECK(report.crossing_before == 12);
+  CHECK(report.crossing_after == 0);
+  CHECK(report.moved >= 4);
+  const CheckReport after = check(lattice, tube);
+  CHECK(after.crossing_segments == 0);
+  CHECK(after.inside_fraction == 1.0);
+  CHECK(after.inverted_cells == 0);
+  // Only free points moved (of the innermost lines, and of their neighbours where a patch
+  // moved), and only outwards from the bend's centre.
+  for (int k = 0; k < lattice.nz; ++k)
+    for (int j = 0; j < lattice.ny; ++j)
+      for (int i = 0; i < lattice.nx; ++i) {
+        const std::size_t q = static_cast<std::size_t>(lattice.index(i, j, k));
+        const Vec3 d = lattice.system.positions[q] - start[q];
+        if (lattice.system.fixed[q] || i > 2) {
+          CHECK(d.norm() == 0.0);
+          continue;
+        }
+        const Vec3 radial(start[q].x(), start[q].y(), 0.0);
+        CHECK(d.dot(radial) >= 0.0);
+      }
+
+  // Nothing to do: no move, no change.
+  const std::vector<Vec3> settled = lattice.system.positions;
+  const SegmentContainmentReport again = contain_segments(lattice, lattice.system, query, 0.0);
+  CHECK(again.crossing_before == 0);
+  CHECK(again.moved == 0);
+  CHECK(lattice.system.positions == settled);
+}
+
+TEST_CASE("a segment move that would fold cells is undone", "[fibres][contain]") {
+  // The lattice squeezed to a thin bundle (w = 0.3) and pushed against the inner wall: every
+  // fibre's segments cross, by more than the spacing between fibres (0.12), so shifting one out
+  // crosses its neighbour where that has not moved yet: such moves are undone, and no cell the
+  // check counts is folded afterwards.
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  const SurfaceQuery query(tube);
+  springs::Lattice lattice = bent_lattice(0.3);
+  for (Vec3& p : lattice.system.positions) {
+    const double radius = std::hypot(p.x(), p.y());
+    p.x() *= (radius - 1.5) / radius;
+    p.y() *= (radius - 1.5) / radius;
+  }
+  const CheckReport before = check(lattice, tube);
+  REQUIRE(before.inside_fraction == 1.0);
+  REQUIRE(before.inverted_cells == 0);
+  REQUIRE(before.crossing_segments > 0);
+  SegmentContainmentOptions options;
+  options.max_shift = 100.0;  // let every move be tried
+  const SegmentContainmentReport report = contain_segments(lattice, lattice.system, query, 0.0, options);
+  const CheckReport after = check(lattice, tube);
+  CHECK(after.inverted_cells == 0);
+  CHECK(after.inside_fraction == 1.0);
+  CHECK(report.crossing_after == after.crossing_segments);
+  CHECK(report.crossing_after <= report.crossing_before);
+  CHECK(report.rejected > 0);
+}
+
+TEST_CASE("segment containment options are validated", "[fibres][contain]") {
+  SegmentContainmentOptions options;
+  options.margin = 0.0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.sweeps = -1;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.samples = 0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.steps = 0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.patch_radius = -1;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  options = {};
+  options.max_shift = 0.0;
+  CHECK_THROWS_AS(options.validate(), OptionError);
+  CHECK_NOTHROW(SegmentContainmentOptions{}.validate());
+}
