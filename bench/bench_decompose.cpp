@@ -87,7 +87,9 @@ nlohmann::json quality_json(const CheckReport& q) {
           {"inside_fraction", q.inside_fraction},
           {"inverted_cells", q.inverted_cells},
           {"coverage_p95", q.coverage.p95},
-          {"attachment", std::max(q.attachment.origin_max, q.attachment.insertion_max)}};
+          {"attachment", std::max(q.attachment.origin_max, q.attachment.insertion_max)},
+          {"crossing_segments", q.crossing_segments},
+          {"max_segment_excursion_relative", q.max_segment_excursion_relative}};
 }
 
 void print_quality(const std::string& name, const std::string& status, const CheckReport& q, double seconds) {
