@@ -658,6 +658,9 @@ std::string CheckReport::to_table() const {
   for (const auto& c : inverted_examples)
     out += "inverted: cell r " + std::to_string(c[0]) + " s " + std::to_string(c[1]) + " between points " +
            std::to_string(c[2]) + " and " + std::to_string(c[2] + 1) + "\n";
+  for (const CrossingSegment& c : crossing_examples)
+    out += "crossing: fibre " + std::to_string(c.fibre) + " between points " + std::to_string(c.segment) + " and " +
+           std::to_string(c.segment + 1) + ", " + fmt_double(c.excursion) + " outside the surface\n";
   for (const OutsidePoint& o : outside_examples)
     out += "outside: fibre " + std::to_string(o.fibre) + " point " + std::to_string(o.point) + " at (" +
            fmt_double(o.position.x()) + ", " + fmt_double(o.position.y()) + ", " + fmt_double(o.position.z()) +

@@ -151,6 +151,7 @@ TEST_CASE("a segment between two inside points that cuts a bend leaves the muscl
   report = check_fibres(fibres, tube, areas, judged);
   CHECK(has_failed(report, "segments"));
   CHECK(report.to_table().find("crossing_segs") != std::string::npos);
+  CHECK(report.to_table().find("crossing: fibre 1 between points 0 and 1") != std::string::npos);
   judged.max_crossing_segments = 2;
   CHECK_FALSE(has_failed(check_fibres(fibres, tube, areas, judged), "segments"));
 
