@@ -3,20 +3,27 @@
 /// Step 10 of the decomposition (docs/decompose.md): fibre segments that leave the muscle between
 /// their two points are moved back inside.
 ///
-/// Every lattice point is inside after the settle and the untangling, but a fibre is a polyline:
-/// where the surface curves between two of its points (the inner side of a bend, a groove) the
-/// straight segment between them can cut through it (fibres/fibre_check.h, crossing_segments).
-/// For each such segment of an interior lattice line (the output fibres), the deepest of its
-/// samples outside the surface is found with its closest surface point; the segment's free end
-/// points are moved along that direction so that the sample lies `margin` times its depth inside
-/// (both by the same shift when both are free; a fibre end is fixed, then the other point takes
-/// the shift divided by its weight at the sample), and again from the moved segment while it has
-/// a sample outside (a faceted wall), up to `steps` shifts. A move is kept only when the moved points are
-/// strictly inside, the segment and the fibre's segments next to it no longer leave the muscle,
+/// The lattice points are inside after the settle and the untangling (their containment), but
+/// a fibre is a polyline: where the surface curves between two of its points (the inner side of
+/// a bend, a groove) the straight segment between them can cut through it (fibres/fibre_check.h,
+/// crossing_segments; this step counts the segments that segment_leaves() finds, which is the
+/// check's count when every fibre point is inside). For each such segment of an interior lattice
+/// line (the output fibres), the deepest of `samples` samples outside the surface (8 x samples + 1
+/// when the segment leaves between them) is found with its closest surface point; the segment's
+/// free points are moved along that direction so that the sample lies `margin` times its depth
+/// inside (both by the same shift when both are free; when one is a fixed fibre end, the other
+/// takes the shift divided by its weight at the sample), and again from the moved segment while
+/// it has a sample outside (a faceted wall), up to `steps` shifts. The move is tried on the
+/// segment's own line, then on patches of lines round it (Chebyshev radius 1 ... patch_radius,
+/// each line's two points shifted by 1 - distance / (radius + 1) of the move), the first that
+/// passes is kept: every moved point strictly inside, the segment no longer leaves, no segment
+/// of a moved line next to the moved points (layers k-1 to k+2) that did not leave now leaves,
 /// and no tetrahedron of the check's cells round the moved points (kuhn_tetrahedra(), oriented
-/// like the lattice) that was good turns inverted or flat; otherwise it is undone. Sweeps repeat
-/// over all fibres until one moves nothing or `sweeps` are done. Deterministic (serial, in
-/// lattice order).
+/// like the lattice) that was good turns inverted or flat; otherwise it is undone. So no segment
+/// starts to leave and no cell folds; the coverage is not guarded (the decomposition keeps the
+/// unmoved fibres when the moved ones fail the check and those pass). Sweeps repeat over the
+/// segments that still leave until one keeps no move or `sweeps` are done. Deterministic (the
+/// moves serial, in lattice order).
 #include "morph/surface_query.h"
 #include "springs/lattice.h"
 #include "springs/spring_system.h"
@@ -56,7 +63,9 @@ struct SegmentContainmentReport {
   long crossing_before = 0;  ///< fibre segments leaving the muscle on entry
   long crossing_after = 0;   ///< and on return
   long moved = 0;            ///< moves kept
-  long rejected = 0;         ///< moves undone (a test above failed) or not tried (max_shift)
+  /// Segments left as they were in a sweep: every move undone (a test above failed), or none
+  /// tried (both points fixed, no sample outside, a shift over max_shift).
+  long rejected = 0;
   int sweeps = 0;            ///< passes made
   double seconds = 0.0;
   nlohmann::json to_json() const;

@@ -745,25 +745,34 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   }
   report.smoothing = {{"steps", options.smooth_steps}, {"weight", options.smooth_weight}, {"reverted", reverted}};
 
+  // Fibres: the interior lattice lines, origin (t = 0) to insertion.
+  auto fibres_of = [&](const std::vector<Vec3>& positions) {
+    std::vector<std::vector<Vec3>> lines;
+    std::vector<int> rs, ss;
+    for (int j = 1; j + 1 < lattice.ny; ++j)
+      for (int i = 1; i + 1 < lattice.nx; ++i) {
+        std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
+        for (int k = 0; k < lattice.nz; ++k) line[static_cast<std::size_t>(k)] = positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+        lines.push_back(std::move(line));
+        rs.push_back(i - 1);
+        ss.push_back(j - 1);
+      }
+    return lattice_fibres(std::move(lines), rs, ss);
+  };
+
   // Segments that leave the muscle between their points (step 10), after every other move.
+  std::vector<Vec3> before_segments;
+  long segments_moved = 0;
   if (options.contain_segments) {
+    before_segments = system.positions;
     const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
-    report.containment["segments"] =
-        contain_segments(lattice, system, query, end_tolerance, options.segments).to_json();
+    const SegmentContainmentReport contained = contain_segments(lattice, system, query, end_tolerance, options.segments);
+    segments_moved = contained.moved;
+    report.containment["segments"] = contained.to_json();
+    report.containment["segments"]["reverted"] = false;
   }
 
-  // Fibres: the interior lattice lines, origin (t = 0) to insertion.
-  std::vector<std::vector<Vec3>> lines;
-  std::vector<int> rs, ss;
-  for (int j = 1; j + 1 < lattice.ny; ++j)
-    for (int i = 1; i + 1 < lattice.nx; ++i) {
-      std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
-      for (int k = 0; k < lattice.nz; ++k) line[static_cast<std::size_t>(k)] = system.positions[static_cast<std::size_t>(lattice.index(i, j, k))];
-      lines.push_back(std::move(line));
-      rs.push_back(i - 1);
-      ss.push_back(j - 1);
-    }
-  out.fibres = lattice_fibres(std::move(lines), rs, ss);
+  out.fibres = fibres_of(system.positions);
   for (const auto& line : out.fibres.lines)
     for (const Vec3& p : line)
       if (!p.allFinite()) throw SolverError("decompose: a fibre point is not finite; check the settle options");
@@ -771,6 +780,18 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Check.
   stage = Clock::now();
   report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
+  // Step 10's moves guard the points, the segments and the cells, not the coverage (a global
+  // figure): when the result fails and the fibres before the moves pass, those are kept.
+  if (!report.quality.pass && segments_moved > 0) {
+    Polylines unmoved = fibres_of(before_segments);
+    CheckReport unmoved_quality = check_fibres(unmoved, muscle, query, checked_against, options.check);
+    if (unmoved_quality.pass) {
+      out.fibres = std::move(unmoved);
+      report.quality = std::move(unmoved_quality);
+      report.containment["segments"]["reverted"] = true;
+      report.containment["segments"]["crossing_after"] = report.quality.crossing_segments;
+    }
+  }
   report.check_seconds = since(stage);
   report.status = report.quality.pass ? "ok" : "failed";
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";

@@ -28,9 +28,12 @@
 ///     first, with the fibre ends free (soft pins) and then held, with containment; see
 ///     docs/decompose.md step 8;
 ///  8. optional smoothing along the fibres (free points only);
-///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+///  9. fibre segments that cut the surface between their points are shifted back inside where
+///     that folds no cell and takes no other segment out (fibres/contain_segments.h; undone when
+///     the result then fails the check and would pass without it);
+/// 10. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
-///     attachment distances.
+///     attachment distances (and the segments that leave the muscle, reported).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
 #include "fibres/contain_segments.h"

@@ -64,9 +64,11 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     unfolded += q["inverted_cells"].get<long>() == 0;
     inverted += q["inverted_cells"].get<long>();
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
-    // Step 10 (segments moved back inside): its count after is the check's.
+    // Step 10 (segments moved back inside): its count after is the check's where every fibre
+    // point is inside (the check also counts a segment with a point outside).
     REQUIRE(r["containment"].contains("segments"));
-    CHECK(r["containment"]["segments"]["crossing_after"] == q["crossing_segments"]);
+    if (q["inside_fraction"].get<double>() == 1.0)
+      CHECK(r["containment"]["segments"]["crossing_after"] == q["crossing_segments"]);
     crossing += q["crossing_segments"].get<long>();
     crossing_before += r["containment"]["segments"]["crossing_before"].get<long>();
     // The retries: none after a pass; after a failure the second try (alternative placement)

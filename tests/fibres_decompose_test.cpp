@@ -156,6 +156,19 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   CHECK(contained.report.quality.inside_fraction == 1.0);
   CHECK(contained.report.quality.inverted_cells <= left.report.quality.inverted_cells);
   CHECK(contained.report.quality.max_segment_excursion <= left.report.quality.max_segment_excursion);
+  CHECK(segments.at("reverted").get<bool>() == false);
+
+  // The moves do not guard the coverage: with a coverage threshold between the two results'
+  // figures the moved fibres fail, the unmoved ones pass and are kept.
+  const double unmoved = left.report.quality.coverage.p95, moved = contained.report.quality.coverage.p95;
+  CAPTURE(unmoved, moved);
+  REQUIRE(moved > unmoved);  // moving fibres off the inner wall leaves it a little thinner
+  options.check.max_coverage_p95 = 0.5 * (unmoved + moved);
+  const Decomposition strict = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(strict.report.status == "ok");
+  CHECK(strict.report.containment.at("segments").at("reverted").get<bool>());
+  CHECK(strict.report.containment.at("segments").at("crossing_after").get<long>() == crossing);
+  CHECK(strict.fibres.lines == left.fibres.lines);
 }
 
 TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct solve's result", "[fibres][decompose]") {
