@@ -94,8 +94,7 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
   auto at = [&](int i, int j, int k) -> Vec3& { return x[static_cast<std::size_t>(lattice.index(i, j, k))]; };
   // Segment k of line (i, j) runs from point k to k + 1; the fibre ends may touch the surface.
   auto leaves = [&](int i, int j, int k) {
-    return segment_leaves(query, at(i, j, k), at(i, j, k + 1), k == 0 ? end_tolerance : 0.0,
-                          k + 2 == nz ? end_tolerance : 0.0);
+    return fibre_segment_leaves(query, at(i, j, k), at(i, j, k + 1), k, nz - 1, end_tolerance);
   };
   // The segments that leave, in lattice order (lines j, i, then k). A move keeps every segment
   // round its points that did not leave from leaving, so no segment outside this list can start
@@ -152,7 +151,7 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
         double depth = segment_excursion(query, a1, b1, options.samples, &t, &closest);
         // A segment that leaves between its samples (a sliver past a facet edge): 8 times as
         // many samples.
-        if (!(depth > 0.0) && segment_leaves(query, a1, b1, k == 0 ? end_tolerance : 0.0, k + 2 == nz ? end_tolerance : 0.0))
+        if (!(depth > 0.0) && fibre_segment_leaves(query, a1, b1, k, nz - 1, end_tolerance))
           depth = segment_excursion(query, a1, b1, 8 * options.samples + 1, &t, &closest);
         if (!(depth > 0.0)) break;
         const Vec3 shift = (1.0 + options.margin) * (closest - (a1 + t * (b1 - a1)));
@@ -175,7 +174,7 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
       for (int radius = 0; radius <= options.patch_radius && !kept_move; ++radius) {
         struct Moved {
           std::size_t q;
-          Vec3 from;
+          Vec3 from, to;
         };
         std::vector<Moved> moved;
         std::vector<std::array<int, 4>> tets;
@@ -183,10 +182,11 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
         std::vector<char> guarded_before;
         for (int jj = std::max(1, j - radius); jj <= std::min(lattice.ny - 2, j + radius); ++jj)
           for (int ii = std::max(1, i - radius); ii <= std::min(lattice.nx - 2, i + radius); ++ii) {
+            const double w = 1.0 - static_cast<double>(std::max(std::abs(ii - i), std::abs(jj - j))) / (radius + 1);
             for (int c = 0; c < 2; ++c) {
               const std::size_t q = static_cast<std::size_t>(lattice.index(ii, jj, k + c));
               if (system.fixed[q]) continue;
-              moved.push_back({q, x[q]});
+              moved.push_back({q, x[q], x[q] + w * (c == 0 ? d0 : d1)});
               const auto more = cells.around(ii, jj, k + c);
               tets.insert(tets.end(), more.begin(), more.end());
             }
@@ -198,13 +198,7 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
         guarded_before.resize(guarded.size());
         for (std::size_t n = 0; n < guarded.size(); ++n)
           guarded_before[n] = leaves(guarded[n][0], guarded[n][1], guarded[n][2]) ? 1 : 0;
-        for (const Moved& m : moved) {
-          const int layer = static_cast<int>(m.q) / (lattice.nx * lattice.ny);
-          const int line = static_cast<int>(m.q) % (lattice.nx * lattice.ny);
-          const int ii = line % lattice.nx, jj = line / lattice.nx;
-          const double w = 1.0 - static_cast<double>(std::max(std::abs(ii - i), std::abs(jj - j))) / (radius + 1);
-          x[m.q] = m.from + w * (layer == k ? d0 : d1);
-        }
+        for (const Moved& m : moved) x[m.q] = m.to;
         bool ok = !leaves(i, j, k);
         for (std::size_t n = 0; ok && n < moved.size(); ++n) ok = query.side(x[moved[n].q]) == Side::inside;
         for (std::size_t n = 0; ok && n < guarded.size(); ++n)

@@ -37,8 +37,8 @@ struct SegmentContainmentOptions {
   /// Passes over all fibres; a pass that keeps no move ends the work (default 4).
   int sweeps = 4;
   /// How far inside the deepest sample of a segment is moved, as a fraction of how far outside it
-  /// was (default 0.25; a margin of a quarter of a local spacing instead kept 0 of 18 moves on
-  /// the LHDL gluteus maximus: the shifted points crossed their neighbours, folding cells).
+  /// was (default 0.25; a margin of a quarter of a local spacing instead kept 1 move of 18 on the
+  /// LHDL gluteus maximus: the shifted points crossed their neighbours, folding cells).
   double margin = 0.25;
   /// Samples along a segment for its deepest excursion (default 16).
   int samples = 16;

@@ -281,6 +281,11 @@ bool segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, dou
   return false;
 }
 
+bool fibre_segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int k, int segments,
+                          double end_tolerance) {
+  return segment_leaves(query, a, b, k == 0 ? end_tolerance : 0.0, k + 1 == segments ? end_tolerance : 0.0);
+}
+
 double segment_excursion(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int samples, double* t, Vec3* closest) {
   double deepest = 0.0;
   for (int i = 1; i <= samples; ++i) {
@@ -380,7 +385,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
         const Vec3& a = line[k];
         const Vec3& b = line[k + 1];
         const bool crosses = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
-                             segment_leaves(query, a, b, k == 0 ? end_tolerance : 0.0, k + 1 == last ? end_tolerance : 0.0);
+                             fibre_segment_leaves(query, a, b, static_cast<int>(k), static_cast<int>(last), end_tolerance);
         if (!crosses) continue;
         CrossingSegment c;
         c.fibre = static_cast<int>(f);

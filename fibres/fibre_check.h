@@ -187,6 +187,12 @@ double muscle_length(const TriangleMesh& muscle);
 /// themselves.
 bool segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, double margin_a, double margin_b);
 
+/// segment_leaves() for segment k (points k, k + 1) of a fibre of `segments` segments: the
+/// fibre's ends (point 0, point `segments`) lie on the surface by design, so hits within
+/// `end_tolerance` (mesh units) of them do not count. The check's rule and step 10's.
+bool fibre_segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int k, int segments,
+                          double end_tolerance);
+
 /// The deepest of `samples` points spaced evenly inside [a, b] (ends excluded) that is outside
 /// the surface: its distance to the surface (0 when none is outside); its parameter along the
 /// segment into `t` and its closest surface point into `closest` when given and one is outside.
