@@ -54,7 +54,7 @@ struct Outcome {
   int exit_code = -1;
   double seconds = 0.0;
   double inside_fraction = std::numeric_limits<double>::quiet_NaN(), coverage_p95 = inside_fraction,
-         attachment = inside_fraction, segment_excursion = inside_fraction;
+         attachment = inside_fraction, segment_excursion = inside_fraction, layer_ratio = inside_fraction;
   long inverted_cells = -1, crossing_segments = -1;
   bool skipped = false;
 };
@@ -162,6 +162,7 @@ void read_outcome(const std::string& report_path, Outcome& o) {
         o.attachment = std::max(q["attachment"].value("origin_max", 0.0), q["attachment"].value("insertion_max", 0.0));
       o.crossing_segments = q.value("crossing_segments", -1L);
       o.segment_excursion = q.value("max_segment_excursion_relative", o.segment_excursion);
+      if (q.contains("steps")) o.layer_ratio = q["steps"].value("layer_ratio", o.layer_ratio);
     }
     if (r.contains("seconds") && r["seconds"].is_object()) o.seconds = r["seconds"].value("total", o.seconds);
   } catch (const std::exception&) {
@@ -181,12 +182,13 @@ void write_summary(const std::string& path, const std::vector<Muscle>& muscles, 
   write_file_atomically(path, [&](std::ostream& out) {
     out << std::setprecision(std::numeric_limits<double>::max_digits10);
     out << "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,crossing_segments,"
-           "segment_excursion,error\n";
+           "segment_excursion,layer_ratio,error\n";
     for (std::size_t i = 0; i < muscles.size(); ++i) {
       const Outcome& o = outcomes[i];
       out << csv_field(muscles[i].name) << ',' << o.status << ',' << o.exit_code << ',' << o.seconds << ','
           << o.inside_fraction << ',' << o.inverted_cells << ',' << o.coverage_p95 << ',' << o.attachment << ','
-          << o.crossing_segments << ',' << o.segment_excursion << ',' << csv_field(o.error) << '\n';
+          << o.crossing_segments << ',' << o.segment_excursion << ',' << o.layer_ratio << ',' << csv_field(o.error)
+          << '\n';
     }
   });
 }

@@ -254,6 +254,53 @@ void CheckOptions::validate() const {
   if (outside_listed < 0) bad("outside_listed", outside_listed, ">= 0");
 }
 
+StepFigures step_figures(const Polylines& fibres) {
+  StepFigures out;
+  std::vector<double> ratios;
+  double sum = 0.0;
+  long count = 0;
+  std::size_t points = fibres.lines.empty() ? 0 : fibres.lines.front().size();
+  for (const auto& line : fibres.lines)
+    if (line.size() != points) points = 0;
+  if (points >= 2) out.layers.assign(points - 1, 0.0);
+  for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
+    const auto& line = fibres.lines[f];
+    if (line.size() < 2) continue;
+    double fibre_sum = 0.0, longest = -1.0;
+    int longest_at = 0;
+    for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+      const double step = (line[k + 1] - line[k]).norm();
+      fibre_sum += step;
+      if (step > longest) longest = step, longest_at = static_cast<int>(k);
+      if (!out.layers.empty()) out.layers[k] += step;
+    }
+    sum += fibre_sum;
+    count += static_cast<long>(line.size()) - 1;
+    const double mean = fibre_sum / static_cast<double>(line.size() - 1);
+    const double ratio = mean > 0.0 ? longest / mean : 1.0;
+    ratios.push_back(ratio);
+    if (ratio > out.max_ratio) {
+      out.max_ratio = ratio;
+      out.worst_fibre = static_cast<int>(f);
+      out.worst_segment = longest_at;
+    }
+  }
+  if (count == 0) return out;
+  out.mean = sum / static_cast<double>(count);
+  std::sort(ratios.begin(), ratios.end());
+  const std::size_t m = ratios.size();
+  out.median_ratio = m % 2 == 1 ? ratios[m / 2] : 0.5 * (ratios[m / 2 - 1] + ratios[m / 2]);
+  if (!out.layers.empty()) {
+    for (double& l : out.layers) l /= static_cast<double>(fibres.lines.size());
+    std::vector<double> sorted = out.layers;
+    std::sort(sorted.begin(), sorted.end());
+    const std::size_t n = sorted.size();
+    const double median = n % 2 == 1 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+    out.layer_ratio = median > 0.0 ? sorted.back() / median : 0.0;
+  }
+  return out;
+}
+
 double muscle_length(const TriangleMesh& muscle) {
   if (muscle.positions.empty()) return 0.0;
   const PrincipalAxes principal = principal_axes(muscle.positions);
@@ -431,6 +478,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     }
   }
   report.max_turning_angle_deg = max_angle;
+  report.steps = step_figures(fibres);
   double sum = 0.0, sum2 = 0.0;
   report.length.min = std::numeric_limits<double>::infinity();
   report.length.max = 0.0;
@@ -588,6 +636,14 @@ nlohmann::json CheckReport::to_json() const {
         {"origin_points", attachment.origin_points},
         {"insertion_points", attachment.insertion_points}}},
       {"length", {{"mean", length.mean}, {"min", length.min}, {"max", length.max}, {"cv", length.cv}}},
+      {"steps",
+       {{"mean", steps.mean},
+        {"max_ratio", steps.max_ratio},
+        {"median_ratio", steps.median_ratio},
+        {"worst_fibre", steps.worst_fibre},
+        {"worst_segment", steps.worst_segment},
+        {"layers", steps.layers},
+        {"layer_ratio", steps.layer_ratio}}},
       {"max_turning_angle_deg", max_turning_angle_deg},
       {"thresholds",
        {{"min_inside_fraction", thresholds.min_inside_fraction},
@@ -660,6 +716,13 @@ std::string CheckReport::to_table() const {
   out += "length mean " + fmt_double(length.mean) + ", min " + fmt_double(length.min) + ", max " +
          fmt_double(length.max) + ", cv " + fmt_double(length.cv) + "; largest turning angle " +
          fmt_double(max_turning_angle_deg) + " deg\n";
+  out += "steps mean " + fmt_double(steps.mean) + "; longest / mean per fibre: median " + fmt_double(steps.median_ratio) +
+         ", largest " + fmt_double(steps.max_ratio);
+  if (steps.worst_fibre >= 0)
+    out += " (fibre " + std::to_string(steps.worst_fibre) + " between points " + std::to_string(steps.worst_segment) +
+           " and " + std::to_string(steps.worst_segment + 1) + ")";
+  if (!steps.layers.empty()) out += "; longest layer / median layer " + fmt_double(steps.layer_ratio);
+  out += "\n";
   for (const auto& c : inverted_examples)
     out += "inverted: cell r " + std::to_string(c[0]) + " s " + std::to_string(c[1]) + " between points " +
            std::to_string(c[2]) + " and " + std::to_string(c[2] + 1) + "\n";

@@ -29,7 +29,8 @@
 ///   or when one of its points failed the inside test. How far a crossing segment goes out is
 ///   sampled (max_segment_excursion). Reported always; judged only when max_crossing_segments
 ///   >= 0 (default -1: not judged, as the inside criterion above is the point test).
-/// Length spread and the largest turning angle are reported, not judged.
+/// Length spread, the point spacing along the fibres (StepFigures) and the largest turning angle
+/// are reported, not judged.
 
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
@@ -139,6 +140,24 @@ struct LengthFigures {
   double mean = 0.0, min = 0.0, max = 0.0, cv = 0.0;
 };
 
+/// How evenly the points are spaced along the fibres (segment lengths, mesh units). A fibre with
+/// one segment several times its others is sampled coarsely there: a curved muscle's surface can
+/// cut such a segment although both its points are inside (LHDL psoas: layers of 17 mm, then one
+/// of 66-70 mm round the hook of its insertion end).
+struct StepFigures {
+  double mean = 0.0;          ///< mean segment length over all segments
+  /// Per fibre, its longest segment divided by its mean segment: the largest over the fibres,
+  /// and the median.
+  double max_ratio = 0.0, median_ratio = 0.0;
+  int worst_fibre = -1;       ///< the fibre with max_ratio (line index), -1 when there is none
+  int worst_segment = -1;     ///< its longest segment (index of its first point)
+  /// When every fibre has the same number of points: the mean length of segment k over the
+  /// fibres, k = 0 .. points - 2 (the lattice's layer steps), and the longest of them divided
+  /// by their median (layer_ratio); empty and 0 otherwise.
+  std::vector<double> layers;
+  double layer_ratio = 0.0;
+};
+
 /// Result of check_fibres. `pass` is true when no criterion failed; `failed` names the failed
 /// ones ("inside", "inverted_cells", "coverage", "attachment", "segments").
 struct CheckReport {
@@ -165,6 +184,7 @@ struct CheckReport {
   CoverageFigures coverage;
   AttachmentFigures attachment;
   LengthFigures length;
+  StepFigures steps;                      ///< point spacing along the fibres (reported, not judged)
   double max_turning_angle_deg = 0.0;     ///< largest angle between consecutive segments
   CheckOptions thresholds;                ///< the options the check ran with
   bool pass = false;
@@ -176,6 +196,10 @@ struct CheckReport {
   /// A human-readable table, one criterion per line with its value, threshold and verdict.
   std::string to_table() const;
 };
+
+/// The point spacing figures of `fibres` (StepFigures; fibres with fewer than 2 points are
+/// skipped).
+StepFigures step_figures(const Polylines& fibres);
 
 /// Muscle length used to scale attachment distances: the extent of the vertices along their
 /// principal axis (largest eigenvector of their covariance), mesh units. 0 for an empty mesh.

@@ -382,6 +382,48 @@ TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
   CHECK(report.max_turning_angle_deg == Approx(90.0).epsilon(1e-12));
 }
 
+TEST_CASE("point spacing along the fibres: per fibre and per layer", "[fibres][check]") {
+  // Three fibres of five points along x: steps 2, 2, 2, 6 (the last layer three times the
+  // others), 3, 3, 3, 3 (even) and 1, 1, 1, 9.
+  const auto fibre = [](double y, std::vector<double> steps) {
+    std::vector<Vec3> line{Vec3(-6, y, 0)};
+    for (double s : steps) line.push_back(line.back() + Vec3(s, 0, 0));
+    return line;
+  };
+  Polylines fibres;
+  fibres.lines = {fibre(0, {2, 2, 2, 6}), fibre(1, {3, 3, 3, 3}), fibre(2, {1, 1, 1, 9})};
+  StepFigures steps = step_figures(fibres);
+  CHECK(steps.mean == Approx(36.0 / 12.0));
+  // Longest over mean: 6 / 3 = 2, 1, 9 / 3 = 3.
+  CHECK(steps.max_ratio == Approx(3.0));
+  CHECK(steps.median_ratio == Approx(2.0));
+  CHECK(steps.worst_fibre == 2);
+  CHECK(steps.worst_segment == 3);
+  REQUIRE(steps.layers.size() == 4);
+  CHECK(steps.layers[0] == Approx(2.0));
+  CHECK(steps.layers[3] == Approx(6.0));
+  CHECK(steps.layer_ratio == Approx(3.0));  // 6 over the median of 2, 2, 2, 6
+  // Fibres of different point counts have no layers.
+  fibres.lines.push_back({Vec3(-6, 3, 0), Vec3(6, 3, 0)});
+  steps = step_figures(fibres);
+  CHECK(steps.layers.empty());
+  CHECK(steps.layer_ratio == 0.0);
+  CHECK(steps.max_ratio == Approx(3.0));
+  // In the report, its JSON and its table.
+  const TriangleMesh box = long_box(1);
+  const CheckReport report = check_fibres(fibres, box, automatic_attachments(box));
+  CHECK(report.steps.max_ratio == steps.max_ratio);
+  const nlohmann::json j = report.to_json();
+  CHECK(j.at("steps").at("median_ratio").get<double>() == report.steps.median_ratio);
+  CHECK(j.at("steps").at("worst_fibre").get<int>() == 2);
+  CHECK(report.to_table().find("(fibre 2 between points 3 and 4)") != std::string::npos);
+  // Evenly spaced lattice fibres: every ratio 1.
+  Polylines even = straight_lattice(3, 7);
+  steps = step_figures(even);
+  CHECK(steps.max_ratio == Approx(1.0));
+  CHECK(steps.layer_ratio == Approx(1.0));
+}
+
 TEST_CASE("the check is deterministic for a seed and reports as JSON", "[fibres][check]") {
   const TriangleMesh box = long_box(3);
   Polylines fibres = straight_lattice(3, 7);

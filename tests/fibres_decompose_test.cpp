@@ -645,16 +645,17 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   std::getline(summary, b);
   CHECK(header ==
         "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,crossing_segments,"
-        "segment_excursion,error");
+        "segment_excursion,layer_ratio,error");
   CHECK(a.rfind("capsule,", 0) == 0);
   {
     // The segment figures of the report's quality section: a count and a fraction of the length.
     std::vector<std::string> fields;
     std::stringstream row(a);
     for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
-    REQUIRE(fields.size() >= 10);
+    REQUIRE(fields.size() >= 11);
     CHECK(std::stol(fields[8]) >= 0);
     CHECK(std::stod(fields[9]) >= 0.0);
+    CHECK(std::stod(fields[10]) >= 1.0);  // the longest layer step over the median one
   }
   CHECK(b.rfind("sub/broken,failed,5,", 0) == 0);
   CHECK_FALSE(std::getline(summary, extra));
