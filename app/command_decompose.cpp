@@ -201,6 +201,15 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();
+  cmd->add_option("--meridian-rings", o.placement.meridian_rings,
+                  "With --band-by-length: each ring point at the same share of its own meridian's length (true) or "
+                  "each ring along one level of the sphere map (false)")
+      ->capture_default_str();
+  cmd->add_option("--even-layers-ratio", o.even_layers_ratio,
+                  "When the result's longest layer of fibre segments is more than this many times the median layer, "
+                  "decompose once more with --meridian-rings true and keep the better or evener result (0: no such "
+                  "try)")
+      ->capture_default_str();
   cmd->add_option("--retry", o.retry_alternative,
                   "When the fibres fail the check, decompose once more with the alternative placement (even "
                   "perimeter and shallow contact switched) and keep the better result")

@@ -409,6 +409,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("placement_end_share: must be in (0, 1], got " + std::to_string(placement_end_share));
   if (!(end_share_retry == 0.0 || (end_share_retry > 0.0 && end_share_retry < 1.0)))
     throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
+  if (!(even_layers_ratio == 0.0 || even_layers_ratio >= 1.0))
+    throw OptionError("even_layers_ratio: must be 0 (no such try) or >= 1, got " + std::to_string(even_layers_ratio));
   if (harmonic_direct_points < 0)
     throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
 }
@@ -813,6 +815,7 @@ nlohmann::json attempt_header(const std::string& change, const DecomposeOptions&
           {"contact_depth_min", options.contact_depth_min},
           {"cast_rim", options.cast_rim},
           {"landmark_strip", options.strip.join},
+          {"meridian_rings", options.placement.meridian_rings},
           {"placement_end_share", options.placement_end_share}};
 }
 
@@ -926,6 +929,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
   double seconds = best.report.seconds;
   int kept = 0;
+  DecomposeOptions kept_options = options;  // the options of the kept result
   // Inverted cells of the first try of the current sequence (the strips', then the disks'), and
   // whether its folds outlasted the untangling with the surface ring freed.
   long first_inverted = best.report.quality.inverted_cells;
@@ -958,12 +962,49 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       if (better_result(d.report.quality, best.report.quality)) {
         best = std::move(d);
         kept = static_cast<int>(attempts.size()) - 1;
+        kept_options = retry;
       }
     } catch (const Error& e) {
       nlohmann::json failed = attempt_header(change, retry);
       failed["status"] = "error";
       failed["error"] = e.what();
       attempts.push_back(std::move(failed));
+    }
+  }
+  // A layer of fibre segments several times the others (the rings skipped a stretch of the
+  // muscle, as where a tendon hooks): the first try once more with the rings placed by meridian,
+  // and, unless that is kept and passes, the kept try's options with them too (the meridian
+  // placement passes the LHDL psoas with one or the other, depending on round-off).
+  const auto layers = [](const Decomposition& d) { return d.report.quality.steps.layer_ratio; };
+  if (options.even_layers_ratio > 0.0 && options.placement.band_by_length && !options.placement.meridian_rings &&
+      layers(best) > options.even_layers_ratio) {
+    std::vector<DecomposeOptions> tries{options};
+    if (kept != 0) tries.push_back(kept_options);
+    for (DecomposeOptions retry : tries) {
+      retry.placement.meridian_rings = true;
+      retry.retry_alternative = false;
+      retry.landmark_twists_deg.clear();
+      retry.end_share_retry = 0.0;
+      try {
+        Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, gpu);
+        attempts.push_back(attempt_json("meridian_rings", retry, d.report));
+        attempts.back()["layer_ratio"] = layers(d);
+        seconds += d.report.seconds;
+        const CheckReport& a = d.report.quality;
+        const CheckReport& b = best.report.quality;
+        const bool evener = a.pass && b.pass && layers(d) < layers(best) &&
+                            a.max_segment_excursion_relative <= b.max_segment_excursion_relative;
+        if (evener || better_result(a, b)) {
+          best = std::move(d);
+          kept = static_cast<int>(attempts.size()) - 1;
+          if (best.report.quality.pass) break;
+        }
+      } catch (const Error& e) {
+        nlohmann::json failed = attempt_header("meridian_rings", retry);
+        failed["status"] = "error";
+        failed["error"] = e.what();
+        attempts.push_back(std::move(failed));
+      }
     }
   }
   best.report.attempts = std::move(attempts);

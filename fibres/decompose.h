@@ -172,6 +172,16 @@ struct DecomposeOptions {
   /// at 6-119 folded cells; docs/BENCHMARKS.md, "Decompose", fifteenth session). Not gated by
   /// retry_max_inverted_cells: a different area changes the whole placement.
   double end_share_retry = 0.8;
+  /// When the kept result's longest layer of fibre segments is more than this many times the
+  /// median layer (the check's steps.layer_ratio: the rings skipped a stretch of the muscle),
+  /// decompose once more with the lateral rings placed by meridian
+  /// (PlacementOptions::meridian_rings): the first try's options, then, unless that result is
+  /// kept and passes, the kept try's options. A result is kept when it is better
+  /// (better_result()), or when both pass and it has the lower layer ratio and no deeper segment
+  /// excursion. >= 1, or 0 for no such try (default 2.5: on the corpus only the LHDL psoas, 4.08,
+  /// is retried, and keeps its first meridian try, 1.56; the opendihu biceps, 2.10-2.17, fold
+  /// with meridian rings; docs/BENCHMARKS.md, "Decompose", twenty-second session).
+  double even_layers_ratio = 2.5;
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -223,7 +233,8 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 /// "end_share" (placement_end_share times options.end_share_retry, when that is not 0); then, with landmark
 /// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
 /// the strips off) and the same plan again with the strips off, each change prefixed
-/// "landmark_disks_". Retries do not retry.
+/// "landmark_disks_". Retries do not retry. (After the plan, decompose may add "meridian_rings"
+/// tries: DecomposeOptions::even_layers_ratio.)
 struct RetryStep {
   std::string change;        ///< what the step changes (the names above), for the report
   DecomposeOptions options;  ///< the options of the whole decomposition tried

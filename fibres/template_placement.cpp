@@ -479,6 +479,107 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     }
     muscle_band.finish();
 
+    // Rings by meridian length: along each meridian (muscle azimuth phi in the pole frame, u from
+    // the origin region to the insertion region) the lateral rings go to even shares of the
+    // meridian's length on the muscle (through the area-weighted face centres of kMeridianSteps
+    // levels, over a window of three of kMeridians azimuth sectors), instead of one share per
+    // level for all azimuths. Where the sphere map's levels run obliquely along a thin tendon
+    // (LHDL psoas: a level 1/125 of the band wide spans 78 mm of its tendon), a ring at one level
+    // for all azimuths skips most of the tendon (a 66-70 mm layer followed by a 2.5-3.3 mm one).
+    // Levels along each meridian: at most 48, fewer on a coarse mesh (about 6 faces a sector
+    // and level, 18 in its window), at least 12.
+    constexpr int kMeridians = 24;
+    const int kMeridianSteps = std::clamp(static_cast<int>(n_faces / (6 * kMeridians)), 12, 48);
+    std::vector<std::vector<double>> meridian_u, meridian_share;
+    if (options.band_by_length && options.meridian_rings) {
+      struct Cell {
+        Vec3 sum = Vec3::Zero();
+        double area = 0.0, u = 0.0;
+      };
+      std::vector<Cell> cells(static_cast<std::size_t>(kMeridians * kMeridianSteps));
+      for (std::size_t f = 0; f < n_faces; ++f) {
+        const double ro = so * face_ro[f], ri = si * face_ri[f];
+        const double u = (face_theta[f] - ro) / (kPi - ri - ro);
+        if (!(u >= 0.0 && u <= 1.0)) continue;
+        const double x = face_phi[f] / (2.0 * kPi);
+        const int m = static_cast<int>(std::floor((x - std::floor(x)) * kMeridians)) % kMeridians;
+        const int j = std::min(kMeridianSteps - 1, static_cast<int>(u * kMeridianSteps));
+        const Triangle& t = muscle.triangles[f];
+        const Vec3 c = (muscle.positions[t[0]] + muscle.positions[t[1]] + muscle.positions[t[2]]) / 3.0;
+        for (int dm = -1; dm <= 1; ++dm) {
+          Cell& cell = cells[static_cast<std::size_t>(((m + dm + kMeridians) % kMeridians) * kMeridianSteps + j)];
+          cell.sum += face_area[f] * c;
+          cell.area += face_area[f];
+          cell.u += face_area[f] * u;
+        }
+      }
+      meridian_u.resize(kMeridians);
+      meridian_share.resize(kMeridians);
+      for (int m = 0; m < kMeridians; ++m) {
+        std::vector<double> us;
+        std::vector<Vec3> centres;
+        for (int j = 0; j < kMeridianSteps; ++j) {
+          const Cell& cell = cells[static_cast<std::size_t>(m * kMeridianSteps + j)];
+          if (cell.area <= 0.0) continue;
+          us.push_back(cell.u / cell.area);
+          centres.push_back(cell.sum / cell.area);
+        }
+        if (us.size() < 2) {
+          meridian_u.clear();
+          meridian_share.clear();
+          break;
+        }
+        // Two passes of a (1, 2, 1) filter along the meridian (ends kept): the centres of a few
+        // faces each zigzag, which would add length where a meridian's cells are sparse.
+        for (int pass = 0; pass < 2 && centres.size() > 2; ++pass) {
+          std::vector<Vec3> smoothed = centres;
+          for (std::size_t i = 1; i + 1 < centres.size(); ++i)
+            smoothed[i] = 0.25 * (centres[i - 1] + 2.0 * centres[i] + centres[i + 1]);
+          centres.swap(smoothed);
+        }
+        // Length from u = 0 to the first centre and from the last to u = 1: the neighbouring
+        // piece's length per unit of u.
+        std::vector<double> nodes_u{0.0}, arc{0.0};
+        const double first = (centres[1] - centres[0]).norm() / std::max(us[1] - us[0], 1e-12);
+        nodes_u.push_back(us[0]);
+        arc.push_back(first * us[0]);
+        for (std::size_t i = 1; i < us.size(); ++i) {
+          nodes_u.push_back(us[i]);
+          arc.push_back(arc.back() + (centres[i] - centres[i - 1]).norm());
+        }
+        const std::size_t n = us.size();
+        const double last = (centres[n - 1] - centres[n - 2]).norm() / std::max(us[n - 1] - us[n - 2], 1e-12);
+        nodes_u.push_back(1.0);
+        arc.push_back(arc.back() + last * (1.0 - us[n - 1]));
+        // Strictly increasing (a small floor per node, as Cumulative does over empty bins).
+        const double floor = arc.back() * 1e-4 / static_cast<double>(arc.size());
+        for (std::size_t i = 1; i < arc.size(); ++i) arc[i] += floor * static_cast<double>(i);
+        for (double& l : arc) l /= arc.back();
+        meridian_u[static_cast<std::size_t>(m)] = std::move(nodes_u);
+        meridian_share[static_cast<std::size_t>(m)] = std::move(arc);
+      }
+    }
+    // Band level u (in [0, 1]) of the lateral ring at share `share` of the length at muscle
+    // azimuth phi (blend of the two neighbouring meridians: monotone in the share).
+    const auto meridian_level = [&](double phi, double share) {
+      const auto inverse = [&](int m, double v) {
+        const auto& sh = meridian_share[static_cast<std::size_t>(m)];
+        const auto& us = meridian_u[static_cast<std::size_t>(m)];
+        const auto it = std::upper_bound(sh.begin(), sh.end(), v);
+        std::size_t i = it == sh.begin() ? 0 : static_cast<std::size_t>(it - sh.begin()) - 1;
+        i = std::min(i, sh.size() - 2);
+        const double w = sh[i + 1] - sh[i];
+        const double f = w > 0.0 ? std::clamp((v - sh[i]) / w, 0.0, 1.0) : 0.0;
+        return us[i] + f * (us[i + 1] - us[i]);
+      };
+      const double x = phi / (2.0 * kPi);
+      const double y = (x - std::floor(x)) * kMeridians - 0.5;
+      const double yf = std::floor(y);
+      const int m0 = (static_cast<int>(yf) + kMeridians) % kMeridians, m1 = (m0 + 1) % kMeridians;
+      const double f = y - yf;
+      return (1.0 - f) * inverse(m0, share) + f * inverse(m1, share);
+    };
+
     std::vector<double> level_twist(kLevels, twist);
     double previous = twist;
     for (int b = 0; b < kLevels; ++b) {
@@ -596,8 +697,10 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         theta = kPi - rho * si * insertion_radius(phi);
       } else {
         const double ut = std::clamp((theta_t - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
-        const double um = muscle_band.inverse(template_band.share(ut));
+        const double share = template_band.share(ut);
+        double um = muscle_band.inverse(share);
         phi = muscle_azimuth(phi_t, um);
+        if (!meridian_u.empty()) um = meridian_level(phi, share);
         const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
         theta = ro + um * (kPi - ri - ro);
       }

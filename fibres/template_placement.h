@@ -76,6 +76,19 @@ struct PlacementOptions {
   /// circumference) when true, to even steps of surface area when false (default true: keeps the
   /// layers flat where the muscle narrows to a tendon).
   bool band_by_length = true;
+  /// With band_by_length: each lateral ring point goes to the same share of the length of its
+  /// own meridian (the curve of its azimuth from the origin region to the insertion region,
+  /// through the area-weighted face centres of up to 48 levels in 24 azimuth sectors, each
+  /// sector's window three sectors wide, the curve smoothed twice by (1, 2, 1)), so a ring need
+  /// not follow one level of the sphere map; its azimuth stays the level ring's (default false:
+  /// one level per ring). Where the sphere map's levels run obliquely along a thin tendon, a
+  /// level ring skips it (LHDL psoas: layers of 15-28 mm, then one of 70 mm round its hooked
+  /// insertion end, the tendon's hook left without fibres); by meridian its lateral layers are
+  /// 20-39 mm, the fibres following the hook. As the first choice it passed 45 of the 47 corpus muscles
+  /// (the two opendihu biceps fold), so decompose tries it only for a result with a layer that
+  /// long (DecomposeOptions::even_layers_ratio; docs/BENCHMARKS.md, "Decompose", twenty-second
+  /// session).
+  bool meridian_rings = false;
   /// Azimuth (degrees) of the template's r axis from the muscle's second principal axis in each
   /// cross-section, in [-180, 180] (default 45: a corner of the lattice's square cross-section
   /// at each end of the muscle's broad axis). With 0 the middle of a lattice side lies on the

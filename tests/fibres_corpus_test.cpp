@@ -20,7 +20,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   const int code = test::run_command(test::program() + " -q batch " + muscles + " -o " + dir.path().string() +
                                      " --jobs 2 --keep-failed 2>/dev/null");
   CHECK((code == 0 || code == 19));
-  int reports = 0, passed = 0, unfolded = 0, covered = 0, widened = 0;
+  int reports = 0, passed = 0, unfolded = 0, covered = 0, widened = 0, meridian_tries = 0;
+  double largest_layer_ratio = 0.0;
   long inverted = 0, crossing = 0, crossing_before = 0;
   std::set<std::string> refused;
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir.path())) {
@@ -79,25 +80,44 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     const auto& attempts = r["attempts"];
     REQUIRE(attempts.size() >= 1);
     CHECK(attempts[0]["change"] == "none");
-    if (attempts[0]["status"] == "ok") CHECK(attempts.size() == 1);
+    // After the ladder, the kept try once more with the rings placed by meridian when its longest
+    // layer of segments is more than 2.5 times the median (DecomposeOptions::even_layers_ratio).
+    // (the first try's options, then, unless that is kept and passes, the kept try's).
+    std::size_t ladder = attempts.size();
+    while (ladder > 1 && attempts[ladder - 1]["change"] == "meridian_rings") --ladder;
+    const bool meridian = ladder < attempts.size();
+    if (meridian) {
+      CHECK(attempts.size() - ladder <= 2);
+      ++meridian_tries;
+      // The meridian rings space the layers evenly (LHDL psoas: 1.56 against 4.08 by level).
+      for (std::size_t i = ladder; i < attempts.size(); ++i) {
+        CHECK(attempts[i]["meridian_rings"] == true);
+        CHECK(attempts[i]["layer_ratio"].get<double>() < 2.0);
+      }
+    } else {
+      CHECK(q["steps"]["layer_ratio"].get<double>() <= 2.5);
+    }
+    if (entry.path().filename() == "LHDL_R_M090_Psoas_smooth.415.report.json") CHECK(meridian);
+    largest_layer_ratio = std::max(largest_layer_ratio, q["steps"]["layer_ratio"].get<double>());
+    if (attempts[0]["status"] == "ok") CHECK(ladder == 1);
     else {
-      REQUIRE(attempts.size() >= 2);
+      REQUIRE(ladder >= 2);
       CHECK(attempts[1]["change"] == "alternative_placement");
       const bool gated = attempts[0]["inverted_cells"].get<long>() > 50 ||
                          attempts[0]["free_ring_tried"].get<bool>();
       if (gated) CHECK(attempts[1]["status"] == "skipped");
       else CHECK(attempts[1]["status"] != "skipped");
-      if (attempts[1]["status"] == "ok") CHECK(attempts.size() == 2);
+      if (attempts[1]["status"] == "ok") CHECK(ladder == 2);
       else {
-        REQUIRE(attempts.size() >= 3);
+        REQUIRE(ladder >= 3);
         CHECK(attempts[2]["change"] == "rim_left");
         if (gated) CHECK(attempts[2]["status"] == "skipped");
         else CHECK(attempts[2]["status"] != "skipped");
         // Then, never skipped, the fibre ends placed on 0.8 of the automatic areas
         // (DecomposeOptions::end_share_retry).
-        if (attempts[2]["status"] == "ok") CHECK(attempts.size() == 3);
+        if (attempts[2]["status"] == "ok") CHECK(ladder == 3);
         else {
-          REQUIRE(attempts.size() == 4);
+          REQUIRE(ladder == 4);
           CHECK(attempts[3]["change"] == "end_share");
           CHECK(attempts[3]["placement_end_share"] == 0.8);
           CHECK(attempts[3]["status"] != "skipped");
@@ -153,8 +173,17 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // round differently elsewhere, and the untangling's attempts are sensitive to round-off.
   // Segments that leave the muscle between their points, twenty-first session, 2026-11-28
   // (docs/BENCHMARKS.md, "Decompose", "Twenty-first session"): 1316 of 65800 without step 10,
-  // 516 with it; the ceiling keeps room for round-off (the retries and the untangling).
-  CHECK(crossing <= 700);
+  // 516 with it; the ceiling keeps room for round-off (the retries and the untangling). Twenty-
+  // second session: 665, the LHDL psoas's fibres now following the hook of its tendon by meridian
+  // rings (102 -> 251 crossing segments, the deepest 6.84 % -> 3.22 % of its length).
+  CHECK(crossing <= 900);
+  // Layers of fibre segments (twenty-second session): by level rings the psoas's longest layer
+  // was 4.08 times its median one; with the meridian try only the LHDL psoas is retried (kept:
+  // 1.56) and the largest ratio left is 2.17 (opendihu left biceps). Room for muscles whose
+  // meridian tries round-off makes fail: their ratio stays what the level rings gave.
+  CHECK(meridian_tries >= 1);
+  CHECK(meridian_tries <= 3);
+  CHECK(largest_layer_ratio <= 4.5);
   CHECK(crossing < crossing_before);
   CHECK(passed >= 46);
   CHECK(unfolded >= 46);

@@ -16,6 +16,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <random>
 #include <sstream>
 
@@ -37,6 +38,22 @@ TriangleMesh capsule() {
   for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
   return mesh;
 }
+
+// The capsule, its sphere map and locator, its automatic areas and an 8 x 8 x 12 lattice: what
+// the placement tests place.
+struct CapsulePlacement {
+  TriangleMesh mesh = capsule();
+  SphereMap map = map_to_sphere(mesh);
+  SphereLocator locator{map.positions, mesh.triangles};
+  Attachments areas = automatic_attachments(mesh);
+  springs::Lattice lattice = springs::build_lattice([] {
+    springs::LatticeOptions lo;
+    lo.nr = 8;
+    lo.ns = 8;
+    lo.resolution = 12;
+    return lo;
+  }());
+};
 
 }  // namespace
 
@@ -61,16 +78,13 @@ TEST_CASE("a pole frame sends origin and insertion to the poles and back", "[fib
 }
 
 TEST_CASE("template surface points land on the muscle, faces in their areas", "[fibres][placement]") {
-  const TriangleMesh mesh = capsule();
-  const SphereMap map = map_to_sphere(mesh);
-  REQUIRE(map.report.quality.bijective());
-  const SphereLocator locator(map.positions, mesh.triangles);
-  const Attachments areas = automatic_attachments(mesh);
-  springs::LatticeOptions lo;
-  lo.nr = 8;
-  lo.ns = 8;
-  lo.resolution = 12;
-  const springs::Lattice lattice = springs::build_lattice(lo);
+  const CapsulePlacement setup;
+  REQUIRE(setup.map.report.quality.bijective());
+  const TriangleMesh& mesh = setup.mesh;
+  const SphereMap& map = setup.map;
+  const SphereLocator& locator = setup.locator;
+  const Attachments& areas = setup.areas;
+  const springs::Lattice& lattice = setup.lattice;
   const Placement placement = place_template(mesh, map.positions, locator, areas, lattice);
   const double length = muscle_length(mesh);
   CHECK(length == Approx(10.0).epsilon(0.01));
@@ -109,6 +123,85 @@ TEST_CASE("template surface points land on the muscle, faces in their areas", "[
     CHECK(ring_z[static_cast<std::size_t>(k)] / ring_n[static_cast<std::size_t>(k)] <
           ring_z[static_cast<std::size_t>(k - 1)] / ring_n[static_cast<std::size_t>(k - 1)]);
   CHECK(placement.report.located == static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
+}
+
+TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placement]") {
+  // A capsule's sphere map has levels that run a little obliquely, so level rings tilt (each
+  // spans up to 1.2 of the capsule's height at a step of 1.03); each point of a meridian ring
+  // sits at its own meridian's share of the length, so those rings lie flatter: in order from the
+  // origin to the insertion, each spanning at most half a step and less than the level rings'
+  // largest span, steps within 25 % of their mean away from the caps.
+  const CapsulePlacement setup;
+  REQUIRE(setup.map.report.quality.bijective());
+  const TriangleMesh& mesh = setup.mesh;
+  const SphereMap& map = setup.map;
+  const SphereLocator& locator = setup.locator;
+  const Attachments& areas = setup.areas;
+  const springs::Lattice& lattice = setup.lattice;
+  const int plane = lattice.nx * lattice.ny;
+  struct Rings {
+    std::vector<double> mean, span;
+  };
+  const auto rings = [&](bool meridian) {
+    PlacementOptions options;
+    options.meridian_rings = meridian;
+    const Placement placement = place_template(mesh, map.positions, locator, areas, lattice, options);
+    CHECK(placement.report.located ==
+          static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
+    const auto nz = static_cast<std::size_t>(lattice.nz);
+    std::vector<double> low(nz, 1e300), high(nz, -1e300);
+    Rings out{std::vector<double>(nz, 0.0), std::vector<double>(nz, 0.0)};
+    std::vector<int> count(nz, 0);
+    for (int q = 0; q < lattice.point_count(); ++q) {
+      if (!lattice.system.fixed[static_cast<std::size_t>(q)]) continue;
+      const auto k = static_cast<std::size_t>(q / plane);
+      REQUIRE(placement.points[static_cast<std::size_t>(q)].face >= 0);
+      const double z = placement.points[static_cast<std::size_t>(q)].position.z();
+      low[k] = std::min(low[k], z);
+      high[k] = std::max(high[k], z);
+      out.mean[k] += z;
+      ++count[k];
+    }
+    for (std::size_t k = 0; k < nz; ++k) {
+      out.mean[k] /= count[k];
+      out.span[k] = high[k] - low[k];
+    }
+    return out;
+  };
+  const Rings level = rings(false), meridian = rings(true);
+  std::vector<double> steps;
+  for (std::size_t k = 1; k < meridian.mean.size(); ++k) {
+    CHECK(meridian.mean[k] < meridian.mean[k - 1]);
+    if (k >= 2 && k + 2 < meridian.mean.size()) steps.push_back(meridian.mean[k - 1] - meridian.mean[k]);
+  }
+  const double average = std::accumulate(steps.begin(), steps.end(), 0.0) / static_cast<double>(steps.size());
+  for (double step : steps) CHECK(std::abs(step - average) <= 0.25 * average);
+  const std::size_t last = meridian.span.size() - 1;
+  const double level_largest = *std::max_element(level.span.begin() + 1, level.span.begin() + static_cast<long>(last));
+  const double meridian_largest =
+      *std::max_element(meridian.span.begin() + 1, meridian.span.begin() + static_cast<long>(last));
+  CHECK(meridian_largest <= 0.5 * average);
+  CHECK(meridian_largest < level_largest);
+}
+
+TEST_CASE("a result with a long layer is decomposed once more with meridian rings", "[fibres][decompose]") {
+  // Any layer ratio above 1 asks for the meridian try; 0 never does.
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions options;
+  options.even_layers_ratio = 1.0;
+  const Decomposition d = decompose_repaired(mesh, Landmarks{}, options);
+  const nlohmann::json& attempts = d.report.attempts;
+  REQUIRE(attempts.size() == 2);
+  CHECK(attempts[0]["change"] == "none");
+  CHECK(attempts[0]["meridian_rings"] == false);
+  CHECK(attempts[1]["change"] == "meridian_rings");
+  CHECK(attempts[1]["meridian_rings"] == true);
+  CHECK(attempts[1]["layer_ratio"].get<double>() >= 1.0);
+  // The kept one: the meridian try when it is better or passes with evener layers.
+  if (d.report.kept_attempt == 1) CHECK(d.report.quality.steps.layer_ratio == attempts[1]["layer_ratio"].get<double>());
+  CHECK(d.report.quality.pass);
+  options.even_layers_ratio = 0.0;
+  CHECK(decompose_repaired(mesh, Landmarks{}, options).report.attempts.size() == 1);
 }
 
 TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "[fibres][decompose]") {
@@ -558,6 +651,11 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   share.placement_end_share = 1.0;
   share.end_share_retry = 1.0;
   CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
+  DecomposeOptions layers;
+  layers.even_layers_ratio = 0.5;
+  CHECK_THROWS_WITH(layers.validate(), Catch::Contains("even_layers_ratio"));
+  layers.even_layers_ratio = 0.0;
+  CHECK_NOTHROW(layers.validate());
   share.end_share_retry = -0.5;
   CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
   DecomposeOptions depth;
