@@ -660,7 +660,8 @@ TEST_CASE("untangle in the decomposition: the free-ring attempts run again with 
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;      // (nor the end-share retry)
+  options.end_share_retry = 0.0;      // (nor the end-share retry,
+  options.even_layers_ratio = 0.0;    // nor the meridian try)
   REQUIRE(options.untangle.containment_retry);
   REQUIRE_FALSE(options.untangle.containment_energy);
   const Decomposition d = decompose(soup, {}, options);
