@@ -287,16 +287,18 @@ StepFigures step_figures(const Polylines& fibres) {
   }
   if (count == 0) return out;
   out.mean = sum / static_cast<double>(count);
-  std::sort(ratios.begin(), ratios.end());
-  const std::size_t m = ratios.size();
-  out.median_ratio = m % 2 == 1 ? ratios[m / 2] : 0.5 * (ratios[m / 2 - 1] + ratios[m / 2]);
+  // Median of a non-empty list, sorted in place.
+  const auto median = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  out.median_ratio = median(ratios);
   if (!out.layers.empty()) {
     for (double& l : out.layers) l /= static_cast<double>(fibres.lines.size());
     std::vector<double> sorted = out.layers;
-    std::sort(sorted.begin(), sorted.end());
-    const std::size_t n = sorted.size();
-    const double median = n % 2 == 1 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
-    out.layer_ratio = median > 0.0 ? sorted.back() / median : 0.0;
+    const double middle = median(sorted);
+    out.layer_ratio = middle > 0.0 ? sorted.back() / middle : 0.0;
   }
   return out;
 }

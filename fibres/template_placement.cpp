@@ -400,6 +400,20 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
                              .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
                              .norm();
   }
+  // Meridian rings: each face's centre and azimuth sector (neither depends on the face scales).
+  constexpr int kMeridians = 24;
+  std::vector<Vec3> triangle_centre;
+  std::vector<int> triangle_sector;
+  if (options.band_by_length && options.meridian_rings) {
+    triangle_centre.resize(n_faces);
+    triangle_sector.resize(n_faces);
+    for (std::size_t f = 0; f < n_faces; ++f) {
+      const Triangle& t = muscle.triangles[f];
+      triangle_centre[f] = (muscle.positions[t[0]] + muscle.positions[t[1]] + muscle.positions[t[2]]) / 3.0;
+      const double x = face_phi[f] / (2.0 * kPi);
+      triangle_sector[f] = static_cast<int>(std::floor((x - std::floor(x)) * kMeridians)) % kMeridians;
+    }
+  }
   double sx = 0.0, sy = 0.0;
   for (std::size_t v = 0; v < nv; ++v) {
     const double theta = vertex_theta[v];
@@ -481,34 +495,30 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
 
     // Rings by meridian length: along each meridian (muscle azimuth phi in the pole frame, u from
     // the origin region to the insertion region) the lateral rings go to even shares of the
-    // meridian's length on the muscle (through the area-weighted face centres of kMeridianSteps
+    // meridian's length on the muscle (through the area-weighted face centres of meridian_steps
     // levels, over a window of three of kMeridians azimuth sectors), instead of one share per
     // level for all azimuths. Where the sphere map's levels run obliquely along a thin tendon
     // (LHDL psoas: a level 1/125 of the band wide spans 78 mm of its tendon), a ring at one level
     // for all azimuths skips most of the tendon (a 66-70 mm layer followed by a 2.5-3.3 mm one).
     // Levels along each meridian: at most 48, fewer on a coarse mesh (about 6 faces a sector
     // and level, 18 in its window), at least 12.
-    constexpr int kMeridians = 24;
-    const int kMeridianSteps = std::clamp(static_cast<int>(n_faces / (6 * kMeridians)), 12, 48);
+    const int meridian_steps = std::clamp(static_cast<int>(n_faces / (6 * kMeridians)), 12, 48);
     std::vector<std::vector<double>> meridian_u, meridian_share;
-    if (options.band_by_length && options.meridian_rings) {
+    if (!triangle_centre.empty()) {
       struct Cell {
         Vec3 sum = Vec3::Zero();
         double area = 0.0, u = 0.0;
       };
-      std::vector<Cell> cells(static_cast<std::size_t>(kMeridians * kMeridianSteps));
+      std::vector<Cell> cells(static_cast<std::size_t>(kMeridians * meridian_steps));
       for (std::size_t f = 0; f < n_faces; ++f) {
         const double ro = so * face_ro[f], ri = si * face_ri[f];
         const double u = (face_theta[f] - ro) / (kPi - ri - ro);
         if (!(u >= 0.0 && u <= 1.0)) continue;
-        const double x = face_phi[f] / (2.0 * kPi);
-        const int m = static_cast<int>(std::floor((x - std::floor(x)) * kMeridians)) % kMeridians;
-        const int j = std::min(kMeridianSteps - 1, static_cast<int>(u * kMeridianSteps));
-        const Triangle& t = muscle.triangles[f];
-        const Vec3 c = (muscle.positions[t[0]] + muscle.positions[t[1]] + muscle.positions[t[2]]) / 3.0;
+        const int m = triangle_sector[f];
+        const int j = std::min(meridian_steps - 1, static_cast<int>(u * meridian_steps));
         for (int dm = -1; dm <= 1; ++dm) {
-          Cell& cell = cells[static_cast<std::size_t>(((m + dm + kMeridians) % kMeridians) * kMeridianSteps + j)];
-          cell.sum += face_area[f] * c;
+          Cell& cell = cells[static_cast<std::size_t>(((m + dm + kMeridians) % kMeridians) * meridian_steps + j)];
+          cell.sum += face_area[f] * triangle_centre[f];
           cell.area += face_area[f];
           cell.u += face_area[f] * u;
         }
@@ -518,8 +528,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       for (int m = 0; m < kMeridians; ++m) {
         std::vector<double> us;
         std::vector<Vec3> centres;
-        for (int j = 0; j < kMeridianSteps; ++j) {
-          const Cell& cell = cells[static_cast<std::size_t>(m * kMeridianSteps + j)];
+        for (int j = 0; j < meridian_steps; ++j) {
+          const Cell& cell = cells[static_cast<std::size_t>(m * meridian_steps + j)];
           if (cell.area <= 0.0) continue;
           us.push_back(cell.u / cell.area);
           centres.push_back(cell.sum / cell.area);

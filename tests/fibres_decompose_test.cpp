@@ -133,10 +133,6 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
   // largest span, steps within 25 % of their mean away from the caps.
   const CapsulePlacement setup;
   REQUIRE(setup.map.report.quality.bijective());
-  const TriangleMesh& mesh = setup.mesh;
-  const SphereMap& map = setup.map;
-  const SphereLocator& locator = setup.locator;
-  const Attachments& areas = setup.areas;
   const springs::Lattice& lattice = setup.lattice;
   const int plane = lattice.nx * lattice.ny;
   struct Rings {
@@ -145,7 +141,7 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
   const auto rings = [&](bool meridian) {
     PlacementOptions options;
     options.meridian_rings = meridian;
-    const Placement placement = place_template(mesh, map.positions, locator, areas, lattice, options);
+    const Placement placement = place_template(setup.mesh, setup.map.positions, setup.locator, setup.areas, lattice, options);
     CHECK(placement.report.located ==
           static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
     const auto nz = static_cast<std::size_t>(lattice.nz);
