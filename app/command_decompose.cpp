@@ -210,6 +210,15 @@ void add_decompose_command(CLI::App& app) {
                   "decompose once more with --meridian-rings true and keep the better or evener result (0: no such "
                   "try)")
       ->capture_default_str();
+  cmd->add_option("--edge-cell", o.edge_cell,
+                  "Width of the lattice cells between the surface ring and the outermost fibres, in fibre spacings "
+                  "(0.5: the outermost fibres half a spacing from the surface; 1: the ring spaced like the fibres)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--edge-cell-fallback", o.edge_cell_fallback,
+                  "With --edge-cell below 1: when the first try fails the check, decompose again with edge cells of "
+                  "1 and every retry, and keep the better result")
+      ->capture_default_str();
   cmd->add_option("--retry", o.retry_alternative,
                   "When the fibres fail the check, decompose once more with the alternative placement (even "
                   "perimeter and shallow contact switched) and keep the better result")

@@ -10,6 +10,7 @@
 #include <Eigen/SVD>
 #include <tbb/parallel_invoke.h>
 #include <algorithm>
+#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <memory>
@@ -102,6 +103,13 @@ struct LayerFit {
   Eigen::Matrix<double, 3, 2> map = Eigen::Matrix<double, 3, 2>::Zero();
   Vec3 normal() const { return map.col(0).cross(map.col(1)); }
 };
+// Position of line (i, j) in the (r, s) grid, in inner spacings (the index when the edge cells
+// are as wide as the others).
+Eigen::Vector2d grid_position(const springs::Lattice& lattice, int i, int j) {
+  return {springs::lattice_line_position(i, lattice.nx, lattice.edge_cell),
+          springs::lattice_line_position(j, lattice.ny, lattice.edge_cell)};
+}
+
 LayerFit layer_fit(const springs::SpringSystem& system, const springs::Lattice& lattice, int k) {
   auto at = [&](int i, int j) { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
   LayerFit fit;
@@ -109,12 +117,12 @@ LayerFit layer_fit(const springs::SpringSystem& system, const springs::Lattice& 
   for (int j = 1; j + 1 < lattice.ny; ++j)
     for (int i = 1; i + 1 < lattice.nx; ++i) fit.centre += at(i, j), ++count;
   fit.centre /= std::max(count, 1);
-  const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+  const Eigen::Vector2d g_mean = 0.5 * grid_position(lattice, lattice.nx - 1, lattice.ny - 1);
   Eigen::Matrix<double, 3, 2> cross = Eigen::Matrix<double, 3, 2>::Zero();
   Eigen::Matrix2d gram = Eigen::Matrix2d::Zero();
   for (int j = 1; j + 1 < lattice.ny; ++j)
     for (int i = 1; i + 1 < lattice.nx; ++i) {
-      const Eigen::Vector2d g = Eigen::Vector2d(i, j) - g_mean;
+      const Eigen::Vector2d g = grid_position(lattice, i, j) - g_mean;
       cross += (at(i, j) - fit.centre) * g.transpose();
       gram += g * g.transpose();
     }
@@ -210,12 +218,12 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
         // A degenerate fit (the layer collapsed onto a line) is no better than the layer.
         if (!(fit.normal().norm() > 1e-6 * fit.map.squaredNorm()) || !turns_right(fit.map)) continue;
         fit_layer = k;
-        const Eigen::Vector2d g_mean(0.5 * (lattice.nx - 1), 0.5 * (lattice.ny - 1));
+        const Eigen::Vector2d g_mean = 0.5 * grid_position(lattice, lattice.nx - 1, lattice.ny - 1);
         std::size_t n = 0;
         for (int j = 1; j + 1 < lattice.ny; ++j)
-          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit.map * (Eigen::Vector2d(i, j) - g_mean);
+          for (int i = 1; i + 1 < lattice.nx; ++i) offsets[n++] = fit.map * (grid_position(lattice, i, j) - g_mean);
         for (std::size_t r = 0; r < rim.size(); ++r)
-          rim_offsets[r] = fit.map * (Eigen::Vector2d(rim[r][0], rim[r][1]) - g_mean);
+          rim_offsets[r] = fit.map * (grid_position(lattice, rim[r][0], rim[r][1]) - g_mean);
       }
     }
     Vec3 area_centre = Vec3::Zero();
@@ -411,6 +419,8 @@ void DecomposeOptions::validate() const {
     throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
   if (!(even_layers_ratio == 0.0 || even_layers_ratio >= 1.0))
     throw OptionError("even_layers_ratio: must be 0 (no such try) or >= 1, got " + std::to_string(even_layers_ratio));
+  if (!(edge_cell > 0.0 && edge_cell <= 1.0))
+    throw OptionError("edge_cell: must be in (0, 1], got " + std::to_string(edge_cell));
   if (harmonic_direct_points < 0)
     throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
 }
@@ -479,6 +489,7 @@ springs::LatticeOptions lattice_options_of(const DecomposeOptions& options) {
   lattice_options.ns = split[1] + 2;
   lattice_options.resolution = options.resolution;
   lattice_options.model = options.model;
+  lattice_options.edge_cell = options.edge_cell;
   return lattice_options;
 }
 
@@ -816,6 +827,7 @@ nlohmann::json attempt_header(const std::string& change, const DecomposeOptions&
           {"cast_rim", options.cast_rim},
           {"landmark_strip", options.strip.join},
           {"meridian_rings", options.placement.meridian_rings},
+          {"edge_cell", options.edge_cell},
           {"placement_end_share", options.placement_end_share}};
 }
 
@@ -898,37 +910,28 @@ std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmark
   return plan;
 }
 
-Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
-                                 const DecomposeOptions& options) {
-  options.validate();
-  const auto start = Clock::now();
-  // The surface's query trees (with the inside grid) and the muscle's sphere map side by side:
-  // each is mostly one thread's work.
-  std::optional<SurfaceQuery> built_query;
-  MuscleSphere sphere;
-  PreparedLattice prepared;
-  double query_seconds = 0.0;
-  tbb::parallel_invoke(
-      [&] {
-        const auto t = Clock::now();
-        built_query.emplace(muscle);
-        built_query->inside_grid();
-        query_seconds = since(t);
-        prepared = prepare_lattice(options);  // the sphere map takes longer than the query
-      },
-      [&] {
-        const auto t = Clock::now();
-        sphere.map = map_to_sphere(muscle, options.sphere);
-        if (sphere.map.report.quality.bijective()) sphere.locator.emplace(sphere.map.positions, muscle.triangles);
-        sphere.seconds = since(t);
-      });
-  const SurfaceQuery& query = *built_query;
-  const double setup_seconds = since(start);
-  GpuContextCache gpu;
-  Decomposition best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, gpu);
-  nlohmann::json attempts = nlohmann::json::array({attempt_json("none", options, best.report)});
-  double seconds = best.report.seconds;
+namespace {
+
+// A first try with `options` (its attempt named `first_change`), then the retry plan and the
+// meridian tries (step 9): every attempt, the index of the one kept, their seconds.
+struct PlanResult {
+  Decomposition best;
+  nlohmann::json attempts = nlohmann::json::array();
   int kept = 0;
+  double seconds = 0.0;
+};
+
+PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
+                    const PreparedLattice& prepared, const Landmarks& landmarks, const DecomposeOptions& options,
+                    GpuContextCache& gpu, const std::string& first_change) {
+  PlanResult out;
+  Decomposition& best = out.best;
+  nlohmann::json& attempts = out.attempts;
+  int& kept = out.kept;
+  double& seconds = out.seconds;
+  best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, gpu);
+  attempts.push_back(attempt_json(first_change, options, best.report));
+  seconds = best.report.seconds;
   DecomposeOptions kept_options = options;  // the options of the kept result
   // Inverted cells of the first try of the current sequence (the strips', then the disks'), and
   // whether its folds outlasted the untangling with the surface ring freed.
@@ -1007,11 +1010,77 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       }
     }
   }
-  best.report.attempts = std::move(attempts);
-  best.report.kept_attempt = kept;
+  return out;
+}
+
+}  // namespace
+
+Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
+                                 const DecomposeOptions& options) {
+  options.validate();
+  const auto start = Clock::now();
+  // The surface's query trees (with the inside grid) and the muscle's sphere map side by side:
+  // each is mostly one thread's work.
+  std::optional<SurfaceQuery> built_query;
+  MuscleSphere sphere;
+  // A first try with narrow edge cells falls back to even ones: both lattices prepared.
+  const bool narrow_first = options.edge_cell < 1.0 && options.edge_cell_fallback;
+  DecomposeOptions even = options;
+  even.edge_cell = 1.0;
+  PreparedLattice prepared, prepared_even;
+  double query_seconds = 0.0;
+  tbb::parallel_invoke(
+      [&] {
+        const auto t = Clock::now();
+        built_query.emplace(muscle);
+        built_query->inside_grid();
+        query_seconds = since(t);
+        prepared = prepare_lattice(options);  // the sphere map takes longer than the query
+        if (narrow_first) prepared_even = prepare_lattice(even);
+      },
+      [&] {
+        const auto t = Clock::now();
+        sphere.map = map_to_sphere(muscle, options.sphere);
+        if (sphere.map.report.quality.bijective()) sphere.locator.emplace(sphere.map.positions, muscle.triangles);
+        sphere.seconds = since(t);
+      });
+  const SurfaceQuery& query = *built_query;
+  const double setup_seconds = since(start);
+  GpuContextCache gpu;
+  PlanResult plan;
+  if (narrow_first) {
+    // Narrow edge cells first, without the untangling's free-ring attempts; a result that passes
+    // with even layers is kept, else the whole plan runs with even edge cells and the better
+    // result is kept.
+    DecomposeOptions narrow = options;
+    narrow.untangle.free_ring = false;
+    Decomposition first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, gpu);
+    const nlohmann::json first_json = attempt_json("none", narrow, first.report);
+    const bool good = first.report.quality.pass &&
+                      !(options.even_layers_ratio > 0.0 && first.report.quality.steps.layer_ratio > options.even_layers_ratio);
+    if (good) {
+      plan.best = std::move(first);
+      plan.attempts.push_back(first_json);
+      plan.seconds = plan.best.report.seconds;
+    } else {
+      plan = run_plan(muscle, query, sphere, prepared_even, landmarks, even, gpu, "even_edge_cells");
+      plan.attempts.insert(plan.attempts.begin(), first_json);
+      plan.seconds += first.report.seconds;
+      ++plan.kept;
+      if (better_result(first.report.quality, plan.best.report.quality)) {
+        plan.best = std::move(first);
+        plan.kept = 0;
+      }
+    }
+  } else {
+    plan = run_plan(muscle, query, sphere, prepared, landmarks, options, gpu, "none");
+  }
+  Decomposition best = std::move(plan.best);
+  best.report.attempts = std::move(plan.attempts);
+  best.report.kept_attempt = plan.kept;
   best.report.query_seconds = query_seconds;
   best.report.sphere_seconds = sphere.seconds;
-  best.report.seconds = setup_seconds + seconds;
+  best.report.seconds = setup_seconds + plan.seconds;
   return best;
 }
 

@@ -182,6 +182,20 @@ struct DecomposeOptions {
   /// is retried, and keeps its first meridian try, 1.56; the opendihu biceps, 2.10-2.17, fold
   /// with meridian rings; docs/BENCHMARKS.md, "Decompose", twenty-second session).
   double even_layers_ratio = 2.5;
+  /// Width of the lattice cells between the surface ring and the outermost fibres, in fibre
+  /// spacings (springs::LatticeOptions::edge_cell; default 0.5: each fibre at the centre of its
+  /// share of the cross-section, so that the outermost fibres lie half a spacing from the surface
+  /// instead of a whole one; 1 spaces the ring like the fibres, the choice before 2026-11-28).
+  /// Measured on the corpus (docs/BENCHMARKS.md, "Decompose", twenty-third session): median
+  /// coverage p95 1.47 with 1, 1.03 with 0.5; but 0.5 folds two muscles that pass with 1, so
+  /// see edge_cell_fallback. In (0, 1].
+  double edge_cell = 1.0;
+  /// With edge_cell < 1: when the first try fails the check (or its layer ratio is above
+  /// even_layers_ratio), decompose again with edge cells of 1 and the whole retry plan, and keep
+  /// the better result (default true). The first try then leaves out the untangling's free-ring
+  /// attempts (untangle.free_ring), which take most of a failing try's time. With false, every
+  /// try uses edge_cell.
+  bool edge_cell_fallback = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();

@@ -236,13 +236,7 @@ double square_perimeter_share(double phi) {
   return std::clamp(share, 0.0, 1.0);
 }
 
-Vec3 index_coords(const springs::Lattice& lattice, int q) {
-  const int i = q % lattice.nx;
-  const int j = (q / lattice.nx) % lattice.ny;
-  const int k = q / (lattice.nx * lattice.ny);
-  return Vec3(static_cast<double>(i) / (lattice.nx - 1), static_cast<double>(j) / (lattice.ny - 1),
-              static_cast<double>(k) / (lattice.nz - 1));
-}
+Vec3 index_coords(const springs::Lattice& lattice, int q) { return springs::lattice_coordinates(lattice, q); }
 
 }  // namespace
 

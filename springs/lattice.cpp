@@ -146,6 +146,8 @@ void LatticeOptions::validate() const {
     throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
   if (fibres > 4'000'000)
     throw OptionError("fibres: at most 4000000, got " + std::to_string(fibres));
+  if (!(edge_cell > 0.0 && edge_cell <= 1.0))
+    throw OptionError("edge_cell: must be in (0, 1], got " + std::to_string(edge_cell));
   if (resolution < 2 || resolution > 100'000)
     throw OptionError("resolution: must be in 2..100000 points per fibre, got " +
                       std::to_string(resolution));
@@ -166,6 +168,23 @@ std::array<int, 2> near_square_split(int fibres) {
   return {nr, (fibres + nr - 1) / nr};
 }
 
+double lattice_line_position(int i, int n, double edge_cell) {
+  if (edge_cell == 1.0 || i == 0) return static_cast<double>(i);
+  if (i == n - 1) return 2.0 * edge_cell + static_cast<double>(n - 3);
+  return edge_cell + static_cast<double>(i - 1);
+}
+
+Vec3 lattice_coordinates(const Lattice& lattice, int q) {
+  const int i = q % lattice.nx;
+  const int j = (q / lattice.nx) % lattice.ny;
+  const int k = q / (lattice.nx * lattice.ny);
+  return Vec3(lattice_line_position(i, lattice.nx, lattice.edge_cell) /
+                  lattice_line_position(lattice.nx - 1, lattice.nx, lattice.edge_cell),
+              lattice_line_position(j, lattice.ny, lattice.edge_cell) /
+                  lattice_line_position(lattice.ny - 1, lattice.ny, lattice.edge_cell),
+              static_cast<double>(k) / (lattice.nz - 1));
+}
+
 Lattice build_lattice(const LatticeOptions& options) {
   options.validate();
   const auto split = (options.nr > 0 && options.ns > 0) ? std::array<int, 2>{options.nr, options.ns}
@@ -176,15 +195,14 @@ Lattice build_lattice(const LatticeOptions& options) {
   lattice.nz = options.resolution;
   lattice.model = options.model;
   lattice.kind = options.kind;
+  // Edge cells narrower than the others need a line between the boundary lines.
+  lattice.edge_cell = lattice.nx > 2 && lattice.ny > 2 ? options.edge_cell : 1.0;
   const int n = lattice.point_count();
   lattice.system.positions.resize(n);
-  for (int k = 0; k < lattice.nz; ++k)
-    for (int j = 0; j < lattice.ny; ++j)
-      for (int i = 0; i < lattice.nx; ++i)
-        lattice.system.positions[lattice.index(i, j, k)] =
-            template_point(options.kind, static_cast<double>(i) / (lattice.nx - 1),
-                           static_cast<double>(j) / (lattice.ny - 1),
-                           static_cast<double>(k) / (lattice.nz - 1));
+  for (int q = 0; q < n; ++q) {
+    const Vec3 c = lattice_coordinates(lattice, q);
+    lattice.system.positions[static_cast<std::size_t>(q)] = template_point(options.kind, c.x(), c.y(), c.z());
+  }
   double volume = 0.0;
   for (int k = 0; k + 1 < lattice.nz; ++k)
     for (int j = 0; j + 1 < lattice.ny; ++j)

@@ -39,6 +39,11 @@ struct LatticeOptions {
   SpringModel model = SpringModel::model6;  ///< connectivity (default model-6)
   double density = 1.1;  ///< mass per unit template volume; mass per point = density V / #points
                          ///< (default 1.1: muscle tissue in the thesis's units, ch. 7.1.3)
+  /// Width of the cells between the boundary lines and the first inner lines along r and s, in
+  /// inner spacings (default 1: evenly spaced lines). 0.5 puts each inner line at the centre of
+  /// its share of the cross-section, as when the boundary lines are a surface ring round the
+  /// fibres (the decomposition). In (0, 1].
+  double edge_cell = 1.0;
   /// Throws OptionError naming the bad field and value.
   void validate() const;
 };
@@ -53,6 +58,7 @@ std::array<int, 2> near_square_split(int fibres);
 /// index order, its half offsets in half_offsets() order).
 struct Lattice {
   int nx = 0, ny = 0, nz = 0;
+  double edge_cell = 1.0;  ///< LatticeOptions::edge_cell
   SpringModel model = SpringModel::model6;
   TemplateKind kind = TemplateKind::parallel;
   SpringSystem system;
@@ -62,6 +68,13 @@ struct Lattice {
   int index(int i, int j, int k) const { return i + nx * (j + ny * k); }
   int point_count() const { return nx * ny * nz; }
 };
+
+/// Position of line i of n along r or s in inner spacings: 0, a, a + 1, ..., a + n - 3, 2 a + n - 3
+/// for edge cells of width a (exactly i when a = 1).
+double lattice_line_position(int i, int n, double edge_cell);
+
+/// Template coordinates (r, s, t) in [0, 1]^3 of lattice point q.
+Vec3 lattice_coordinates(const Lattice& lattice, int q);
 
 /// Samples a template into a lattice. Throws OptionError for bad options.
 Lattice build_lattice(const LatticeOptions& options);

@@ -200,6 +200,57 @@ TEST_CASE("a result with a long layer is decomposed once more with meridian ring
   CHECK(decompose_repaired(mesh, Landmarks{}, options).report.attempts.size() == 1);
 }
 
+TEST_CASE("narrow edge cells bring the outer fibres nearer the surface", "[fibres][decompose]") {
+  // With the ring spaced like the fibres the outermost fibres lie a whole spacing under the
+  // surface; with edge cells of 0.5, half a spacing: the volume is covered more closely.
+  const TriangleMesh mesh = capsule();
+  DecomposeOptions options;
+  const Decomposition even = decompose_repaired(mesh, Landmarks{}, options);
+  options.edge_cell = 0.5;
+  const Decomposition narrow = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(even.report.quality.pass);
+  REQUIRE(narrow.report.quality.pass);
+  REQUIRE(narrow.report.attempts.size() == 1);  // passed on the first try: no fallback
+  CHECK(narrow.report.attempts[0]["edge_cell"] == 0.5);
+  CHECK(even.report.attempts[0]["edge_cell"] == 1.0);
+  CHECK(narrow.report.quality.coverage.p95 < 0.9 * even.report.quality.coverage.p95);
+  // The fibres' mean distance from the capsule's axis grows (radius 1.5; the axis is z).
+  const auto mean_radius = [](const Decomposition& d) {
+    double sum = 0.0;
+    long n = 0;
+    for (const auto& line : d.fibres.lines)
+      for (std::size_t k = 3; k + 3 < line.size(); ++k) sum += std::hypot(line[k].x(), line[k].y()), ++n;
+    return sum / static_cast<double>(n);
+  };
+  CHECK(mean_radius(narrow) > mean_radius(even));
+
+  // A first try that is not good enough (here: any layer ratio above 1 asks for evener layers)
+  // falls back to even edge cells and the whole plan; the better result is kept.
+  options.even_layers_ratio = 1.0;
+  const Decomposition fallback = decompose_repaired(mesh, Landmarks{}, options);
+  const nlohmann::json& attempts = fallback.report.attempts;
+  REQUIRE(attempts.size() >= 2);
+  CHECK(attempts[0]["change"] == "none");
+  CHECK(attempts[0]["edge_cell"] == 0.5);
+  CHECK(attempts[1]["change"] == "even_edge_cells");
+  CHECK(attempts[1]["edge_cell"] == 1.0);
+  for (std::size_t i = 2; i < attempts.size(); ++i) CHECK(attempts[i]["edge_cell"] == 1.0);
+  CHECK(fallback.report.kept_attempt >= 0);
+  CHECK(fallback.report.kept_attempt < static_cast<int>(attempts.size()));
+  CHECK(fallback.report.quality.pass);
+  // Without the fallback every try has the narrow cells.
+  options.edge_cell_fallback = false;
+  const Decomposition narrow_only = decompose_repaired(mesh, Landmarks{}, options);
+  for (const auto& attempt : narrow_only.report.attempts) CHECK(attempt["edge_cell"] == 0.5);
+  CHECK(narrow_only.report.attempts[0]["change"] == "none");
+
+  DecomposeOptions bad;
+  bad.edge_cell = 0.0;
+  CHECK_THROWS_WITH(bad.validate(), Catch::Contains("edge_cell"));
+  bad.edge_cell = 1.2;
+  CHECK_THROWS_WITH(bad.validate(), Catch::Contains("edge_cell"));
+}
+
 TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "[fibres][decompose]") {
   const TriangleMesh mesh = capsule();
   DecomposeOptions options;

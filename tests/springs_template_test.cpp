@@ -131,6 +131,49 @@ TEST_CASE("lattice surface is closed and outward for every template", "[springs]
   }
 }
 
+TEST_CASE("narrow edge cells put the inner lines at the centres of their shares", "[springs][lattice]") {
+  // 12 x 12 lines (10 x 10 fibres and the ring): with edge cells of 0.5 the inner lines lie at
+  // (i - 0.5) / 10 along r and s, the boundary lines at 0 and 1; t is not affected.
+  CHECK(lattice_line_position(0, 12, 0.5) == 0.0);
+  CHECK(lattice_line_position(1, 12, 0.5) == 0.5);
+  CHECK(lattice_line_position(10, 12, 0.5) == 9.5);
+  CHECK(lattice_line_position(11, 12, 0.5) == 10.0);
+  for (int i = 0; i < 12; ++i) CHECK(lattice_line_position(i, 12, 1.0) == static_cast<double>(i));
+  LatticeOptions options;
+  options.nr = 12;
+  options.ns = 12;
+  options.resolution = 5;
+  options.edge_cell = 0.5;
+  const Lattice narrow = build_lattice(options);
+  CHECK(narrow.edge_cell == 0.5);
+  for (int j = 0; j < narrow.ny; ++j)
+    for (int i = 0; i < narrow.nx; ++i) {
+      const Vec3 c = lattice_coordinates(narrow, narrow.index(i, j, 2));
+      const double r = i == 0 ? 0.0 : i == 11 ? 1.0 : (i - 0.5) / 10.0;
+      const double s = j == 0 ? 0.0 : j == 11 ? 1.0 : (j - 0.5) / 10.0;
+      CHECK(c.x() == Approx(r).margin(1e-15));
+      CHECK(c.y() == Approx(s).margin(1e-15));
+      CHECK(c.z() == 0.5);
+      // The parallel template is the identity of the unit cube.
+      CHECK((narrow.system.positions[static_cast<std::size_t>(narrow.index(i, j, 2))] - c).norm() < 1e-12);
+    }
+  // The edge springs are half as long (stiffness 1 / rest length), the others unchanged.
+  double shortest = 1e300, longest = 0.0;
+  for (const Spring& spring : narrow.system.springs) shortest = std::min(shortest, spring.rest), longest = std::max(longest, spring.rest);
+  CHECK(shortest == Approx(0.05));
+  CHECK(longest == Approx(0.25));  // along t: 4 steps of the unit length
+  // Even edge cells: the coordinates i / (n - 1) to the bit.
+  options.edge_cell = 1.0;
+  const Lattice even = build_lattice(options);
+  for (int q = 0; q < even.point_count(); ++q) {
+    const int i = q % even.nx, j = (q / even.nx) % even.ny, k = q / (even.nx * even.ny);
+    const Vec3 c = lattice_coordinates(even, q);
+    CHECK(c.x() == static_cast<double>(i) / 11);
+    CHECK(c.y() == static_cast<double>(j) / 11);
+    CHECK(c.z() == static_cast<double>(k) / 4);
+  }
+}
+
 TEST_CASE("lattice options are validated", "[springs][lattice]") {
   LatticeOptions options;
   options.fibres = 2;
@@ -141,6 +184,11 @@ TEST_CASE("lattice options are validated", "[springs][lattice]") {
   options = LatticeOptions();
   options.density = 0.0;
   CHECK_THROWS_AS(build_lattice(options), OptionError);
+  for (const double edge : {0.0, -0.5, 1.5}) {
+    options = LatticeOptions();
+    options.edge_cell = edge;
+    CHECK_THROWS_WITH(build_lattice(options), Catch::Contains("edge_cell"));
+  }
   CHECK_THROWS_AS(parse_spring_model(8), OptionError);
 }
 
