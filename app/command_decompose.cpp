@@ -213,7 +213,6 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--edge-cell", o.edge_cell,
                   "Width of the lattice cells between the surface ring and the outermost fibres, in fibre spacings "
                   "(0.5: the outermost fibres half a spacing from the surface; 1: the ring spaced like the fibres)")
-      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--edge-cell-fallback", o.edge_cell_fallback,
                   "With --edge-cell below 1: when the first try fails the check, decompose again with edge cells of "

@@ -40,6 +40,13 @@ struct DecomposeBenchArgs {
   bool skip_speed = false, skip_templates = false, skip_corpus = false;
   std::string scale;          // "FIBRESxPOINTS,..." for the scale run; empty: no scale run
   bool scale_direct = false;  // the scale run also with the harmonic start's direct solve forced
+  double edge_cell = DecomposeOptions{}.edge_cell;  // DecomposeOptions::edge_cell of every run
+  // The decomposition options of every run: the defaults but for the edge cells.
+  DecomposeOptions options() const {
+    DecomposeOptions o;
+    o.edge_cell = edge_cell;
+    return o;
+  }
 };
 
 // "100x15,1000x30" -> {{100, 15}, {1000, 30}}.
@@ -116,7 +123,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
     for (int r = 0; r < args.repeat; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
       const double c0 = cpu_seconds();
-      d = decompose_repaired(muscle, Landmarks{}, DecomposeOptions{});
+      d = decompose_repaired(muscle, Landmarks{}, args.options());
       const auto t1 = std::chrono::steady_clock::now();
       write_polylines(tmp.string(), d.fibres);
       write.push_back(since(t1));
@@ -129,9 +136,9 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
     }
     fs::remove(tmp);
     const double without_check = median(wall) - median(check);
-    std::printf("decompose %s: %zu vertices, %zu triangles, 100 fibres x 15 points, median of %d\n",
+    std::printf("decompose %s: %zu vertices, %zu triangles, 100 fibres x 15 points, edge cells %g, median of %d\n",
                 fs::path(args.muscle).filename().string().c_str(), muscle.positions.size(), muscle.triangles.size(),
-                args.repeat);
+                args.edge_cell, args.repeat);
     std::printf("  sphere %.3f s, placement %.3f s, settle %.3f s, output %.3f s, check %.3f s; total %.3f s "
                 "(cpu %.3f s), without the check %.3f s\n",
                 median(sphere), median(placement), median(settle), median(write), median(check), median(wall),
@@ -140,6 +147,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
                             {"vertices", muscle.positions.size()},
                             {"triangles", muscle.triangles.size()},
                             {"repeat", args.repeat},
+                            {"edge_cell", args.edge_cell},
                             {"median_seconds", median(wall)},
                             {"median_cpu_seconds", median(cpu)},
                             {"median_without_check_seconds", without_check},
@@ -161,7 +169,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
     for (const auto& [fibres, points] : scale) {
       for (const bool direct : {false, true}) {
         if (direct && !args.scale_direct) continue;
-        DecomposeOptions options;
+        DecomposeOptions options = args.options();
         options.fibres = fibres;
         options.resolution = points;
         if (direct) options.harmonic_direct_points = std::numeric_limits<long>::max();
@@ -213,7 +221,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
       landmarks.origin = read_points(landmarks.origin_source);
       landmarks.insertion = read_points(landmarks.insertion_source);
       for (springs::TemplateKind kind : springs::all_template_kinds()) {
-        DecomposeOptions options;
+        DecomposeOptions options = args.options();
         options.kind = kind;
         const std::string label = std::string(name) + " " + springs::template_name(kind);
         const auto t0 = std::chrono::steady_clock::now();
@@ -245,7 +253,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
       const auto t0 = std::chrono::steady_clock::now();
       const std::string label = mesh.filename().string();
       try {
-        const Decomposition d = decompose(read_polygon_soup(mesh.string()), Landmarks{}, DecomposeOptions{});
+        const Decomposition d = decompose(read_polygon_soup(mesh.string()), Landmarks{}, args.options());
         print_quality(label, d.report.status, d.report.quality, since(t0));
         ok += d.report.status == "ok";
         out["corpus"].push_back({{"muscle", label}, {"status", d.report.status}, {"seconds", since(t0)},
@@ -278,6 +286,9 @@ void add_decompose_bench(CLI::App& bench) {
   cmd->add_flag("--skip-corpus", args->skip_corpus, "Skip the corpus run");
   cmd->add_option("--scale", args->scale,
                   "Also decompose the --muscle with these lattices, FIBRESxPOINTS,... (e.g. 100x15,1000x30,2000x50)");
+  cmd->add_option("--edge-cell", args->edge_cell,
+                  "Every run with this width of the edge cells (decompose --edge-cell), in fibre spacings")
+      ->capture_default_str();
   cmd->add_flag("--scale-direct", args->scale_direct,
                 "Scale run: each size also with the harmonic start's direct solve forced (for comparison)");
   cmd->callback([args] { run_decompose_bench(*args); });

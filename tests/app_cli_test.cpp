@@ -181,3 +181,36 @@ TEST_CASE("repair and convert succeed on good input with a complete report", "[a
     CHECK(read_polygon_soup(out).polygons.size() == fixed.polygons.size());
   }
 }
+
+TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
+  test::TempDir dir;
+  REQUIRE(run(dir, "sample --kind capsule -o '" + dir.file("capsule.off") + "'").code == 0);
+  // Out of (0, 1]: a one-line option error, its exit code, no output.
+  for (const char* bad : {"0", "1.5"}) {
+    INFO(bad);
+    const Run r = run(dir, "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file("bad.vtk") +
+                               "' --edge-cell " + bad);
+    CHECK(r.code == exit_code(ErrorCode::invalid_option));
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(r.err.find("edge") != std::string::npos);
+    CHECK_FALSE(fs::exists(dir.file("bad.vtk")));
+  }
+  const Run ok = run(dir, "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file("f.vtk") +
+                              "' --edge-cell 0.5 --report '" + dir.file("r.json") + "'");
+  INFO(ok.err);
+  REQUIRE(ok.code == 0);
+  std::ifstream in(dir.file("r.json"));
+  const nlohmann::json j = nlohmann::json::parse(in);
+  CHECK(j.at("attempts").at(0).at("edge_cell") == 0.5);
+
+  FASCICLE_REQUIRE_DATA();
+  const Run bench = run(dir, "bench decompose --data '" + test::data_dir() +
+                                 "' --repeat 1 --skip-templates --skip-corpus --edge-cell 0.5 --json '" +
+                                 dir.file("b.json") + "'");
+  INFO(bench.err);
+  REQUIRE(bench.code == 0);
+  std::ifstream bin(dir.file("b.json"));
+  const nlohmann::json b = nlohmann::json::parse(bin);
+  CHECK(b.at("speed").at(0).at("edge_cell") == 0.5);
+  CHECK(b.at("speed").at(0).at("quality").at("pass") == true);
+}
