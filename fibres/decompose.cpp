@@ -1052,24 +1052,36 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     // Narrow edge cells first, without the untangling's free-ring attempts; a result that passes
     // with even layers is kept, else the whole plan runs with even edge cells and the better
     // result is kept.
+    // An error of that try (a settle that diverged) is reported and falls back too.
     DecomposeOptions narrow = options;
     narrow.untangle.free_ring = false;
-    Decomposition first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, gpu);
-    const nlohmann::json first_json = attempt_json("none", narrow, first.report);
-    const bool good = first.report.quality.pass &&
-                      !(options.even_layers_ratio > 0.0 && first.report.quality.steps.layer_ratio > options.even_layers_ratio);
-    if (good) {
-      plan.best = std::move(first);
+    std::optional<Decomposition> first;
+    nlohmann::json first_json;
+    try {
+      first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, gpu);
+      first_json = attempt_json("none", narrow, first->report);
+    } catch (const Error& e) {
+      first_json = attempt_header("none", narrow);
+      first_json["status"] = "error";
+      first_json["error"] = e.what();
+    }
+    const bool uneven = options.even_layers_ratio > 0.0 && options.placement.band_by_length &&
+                        !options.placement.meridian_rings && first &&
+                        first->report.quality.steps.layer_ratio > options.even_layers_ratio;
+    if (first && first->report.quality.pass && !uneven) {
+      plan.best = std::move(*first);
       plan.attempts.push_back(first_json);
       plan.seconds = plan.best.report.seconds;
     } else {
       plan = run_plan(muscle, query, sphere, prepared_even, landmarks, even, gpu, "even_edge_cells");
       plan.attempts.insert(plan.attempts.begin(), first_json);
-      plan.seconds += first.report.seconds;
       ++plan.kept;
-      if (better_result(first.report.quality, plan.best.report.quality)) {
-        plan.best = std::move(first);
-        plan.kept = 0;
+      if (first) {
+        plan.seconds += first->report.seconds;
+        if (better_result(first->report.quality, plan.best.report.quality)) {
+          plan.best = std::move(*first);
+          plan.kept = 0;
+        }
       }
     }
   } else {
