@@ -202,6 +202,15 @@ TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   std::ifstream in(dir.file("r.json"));
   const nlohmann::json j = nlohmann::json::parse(in);
   CHECK(j.at("attempts").at(0).at("edge_cell") == 0.5);
+  // The batch passes it on to every muscle.
+  fs::create_directories(dir.file("in"));
+  fs::copy_file(dir.file("capsule.off"), dir.file("in/capsule.off"));
+  const Run batch = run(dir, "--quiet batch '" + dir.file("in") + "' -o '" + dir.file("out") + "' --jobs 1 --edge-cell 0.5");
+  INFO(batch.err);
+  REQUIRE(batch.code == 0);
+  std::ifstream bin_report(dir.file("out/capsule.report.json"));
+  REQUIRE(bin_report.good());
+  CHECK(nlohmann::json::parse(bin_report).at("attempts").at(0).at("edge_cell") == 0.5);
 
   FASCICLE_REQUIRE_DATA();
   const Run bench = run(dir, "bench decompose --data '" + test::data_dir() +
