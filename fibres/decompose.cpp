@@ -10,7 +10,6 @@
 #include <Eigen/SVD>
 #include <tbb/parallel_invoke.h>
 #include <algorithm>
-#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <memory>
@@ -389,6 +388,7 @@ void DecomposeOptions::validate() const {
   lattice.fibres = fibres;
   lattice.resolution = resolution;
   lattice.model = model;
+  lattice.edge_cell = edge_cell;
   lattice.validate();
   if (backend != "cpu" && backend != "gl" && backend != "auto")
     throw OptionError("backend: unknown backend '" + backend + "' (valid: cpu, gl, auto)");
@@ -419,8 +419,6 @@ void DecomposeOptions::validate() const {
     throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
   if (!(even_layers_ratio == 0.0 || even_layers_ratio >= 1.0))
     throw OptionError("even_layers_ratio: must be 0 (no such try) or >= 1, got " + std::to_string(even_layers_ratio));
-  if (!(edge_cell > 0.0 && edge_cell <= 1.0))
-    throw OptionError("edge_cell: must be in (0, 1], got " + std::to_string(edge_cell));
   if (harmonic_direct_points < 0)
     throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
 }
@@ -568,7 +566,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   const springs::LatticeOptions wanted = lattice_options_of(options);
   FASCICLE_CHECK(wanted.kind == prepared.options.kind && wanted.nr == prepared.options.nr &&
                      wanted.ns == prepared.options.ns && wanted.resolution == prepared.options.resolution &&
-                     wanted.model == prepared.options.model,
+                     wanted.model == prepared.options.model && wanted.edge_cell == prepared.options.edge_cell,
                  "the attempt's lattice options are the prepared lattice's");
   const springs::Lattice& lattice = prepared.lattice;
   const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);

@@ -236,8 +236,6 @@ double square_perimeter_share(double phi) {
   return std::clamp(share, 0.0, 1.0);
 }
 
-Vec3 index_coords(const springs::Lattice& lattice, int q) { return springs::lattice_coordinates(lattice, q); }
-
 }  // namespace
 
 void PlacementOptions::validate() const {
@@ -426,8 +424,9 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   Cumulative template_band(kBandBins);
   for (const Triangle& t : lattice.surface) {
     const Vec3 c =
-        (template_pole_vector(index_coords(lattice, t[0])) + template_pole_vector(index_coords(lattice, t[1])) +
-         template_pole_vector(index_coords(lattice, t[2])))
+        (template_pole_vector(springs::lattice_coordinates(lattice, t[0])) +
+         template_pole_vector(springs::lattice_coordinates(lattice, t[1])) +
+         template_pole_vector(springs::lattice_coordinates(lattice, t[2])))
             .normalized();
     const double edge = face_edge(azimuth(c));
     const double u = (polar_angle(c) - edge) / (kPi - 2.0 * edge);
@@ -684,7 +683,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     std::vector<Vec3> directions;
     for (int q = 0; q < n; ++q) {
       if (!lattice.system.fixed[static_cast<std::size_t>(q)]) continue;
-      const Vec3 c = index_coords(lattice, q);
+      const Vec3 c = springs::lattice_coordinates(lattice, q);
       const Vec3 tq = template_pole_vector(c);
       const double theta_t = polar_angle(tq);
       const double phi_t = (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
