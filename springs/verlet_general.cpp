@@ -2,13 +2,17 @@
 // compressed rows (each point lists its springs), forces gathered per point into a separate
 // array, then one integration pass. Both passes are TBB-parallel over fixed blocks of points,
 // so results do not depend on the thread count. A system of one block (up to kBlock points, as
-// a decomposition's lattice) evaluates each spring once instead, with the gather's bits.
+// a decomposition's lattice) evaluates each spring once instead, with the gather's bits, in two
+// halves of the points side by side (each half's springs in the system's order: a spring
+// between the halves is evaluated by both, each adding to its own end), so every point's force
+// is still summed in the same order, whatever the threads.
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <atomic>
@@ -45,6 +49,14 @@ namespace {
 constexpr int kBlock = 4096;  // points per parallel block (fixed: deterministic reductions)
 std::atomic<bool> spring_once_enabled{true};
 
+// One half of the spring-once loop: the springs with an end among points [begin, end), in the
+// system's order; `ends` bit 0: add the force to the first end, bit 1: subtract it from the second.
+struct SpringHalf {
+  int begin = 0, end = 0;
+  std::vector<Spring> springs;
+  std::vector<unsigned char> ends;
+};
+
 class GeneralVerlet final : public SpringSolver {
  public:
   GeneralVerlet(const SpringSystem& system, const SettleOptions& options, bool momentum)
@@ -64,7 +76,21 @@ class GeneralVerlet final : public SpringSolver {
     prev_ = x_;
     force_.assign(x_.size(), 0.0);
     blocks_ = (n_ + kBlock - 1) / kBlock;
-    if (blocks_ == 1 && spring_once_enabled) springs_ = system.springs;  // compute_forces_once
+    if (blocks_ == 1 && spring_once_enabled) {  // forces_once_half, in two halves
+      const int middle = n_ / 2;
+      halves_[0].end = halves_[1].begin = middle;
+      halves_[1].end = n_;
+      for (SpringHalf& h : halves_) {
+        for (const Spring& sp : system.springs) {
+          const unsigned char ends = static_cast<unsigned char>((sp.a >= h.begin && sp.a < h.end ? 1 : 0) |
+                                                                (sp.b >= h.begin && sp.b < h.end ? 2 : 0));
+          if (!ends) continue;
+          h.springs.push_back(sp);
+          h.ends.push_back(ends);
+        }
+      }
+      once_ = true;
+    }
     partial_.assign(std::max(blocks_, 1), 0.0);
     scale_ = residual_force_scale(system);
     floor_ = energy_floor(system);
@@ -82,10 +108,36 @@ class GeneralVerlet final : public SpringSolver {
       momentum = static_cast<double>(since_restart_) / (since_restart_ + 3);
       ++since_restart_;
     }
-    const double r2 = compute_forces(x_);
-    if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
     const double* a = coefficients_.a.data();
     const double* b = coefficients_.b.data();
+    if (once_) {
+      // Each half's forces, then its integration, side by side; x_ is only read until the swap.
+      double largest[2] = {0.0, 0.0}, power[2] = {0.0, 0.0};
+      auto half = [&](int h) {
+        largest[h] = forces_once_half(x_, halves_[h]);
+        double p = 0.0;
+        for (int i = halves_[h].begin; i < halves_[h].end; ++i) {
+          const double bi = momentum_ ? momentum : b[i];
+          for (int c = 0; c < 3; ++c) {
+            const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+            const double v = x_[k] - prev_[k];
+            if (!fixed_[i]) p += force_[k] * v;
+            prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
+          }
+        }
+        power[h] = p;
+      };
+      tbb::parallel_invoke([&] { half(0); }, [&] { half(1); });
+      const double r2 = largest[0] > largest[1] || std::isnan(largest[0]) ? largest[0] : largest[1];
+      if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+      power_ = power[0] + power[1];
+      std::swap(x_, prev_);
+      ++iteration_;
+      if (iteration_ % options_.energy_interval == 0) check_energy();
+      return std::sqrt(r2) / scale_;
+    }
+    const double r2 = compute_forces(x_);
+    if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
       for (int blk = range.begin(); blk != range.end(); ++blk) {
         double power = 0.0;
@@ -113,31 +165,15 @@ class GeneralVerlet final : public SpringSolver {
   double residual() override { return std::sqrt(compute_forces(x_)) / scale_; }
 
   double energy() override {
-    const double dt2 = coefficients_.dt * coefficients_.dt;
+    if (once_) {  // the two halves side by side, as the steps
+      double e[2] = {0.0, 0.0};
+      tbb::parallel_invoke([&] { e[0] = energy_of(halves_[0].begin, halves_[0].end); },
+                           [&] { e[1] = energy_of(halves_[1].begin, halves_[1].end); });
+      return e[0] + e[1];
+    }
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int blk = range.begin(); blk != range.end(); ++blk) {
-        double e = 0.0;
-        const int end = std::min(n_, (blk + 1) * kBlock);
-        for (int i = blk * kBlock; i < end; ++i) {
-          double v2 = 0.0;
-          for (int c = 0; c < 3; ++c) {
-            const double v = x_[3 * i + c] - prev_[3 * i + c];
-            v2 += v * v;
-          }
-          e += 0.5 * coefficients_.mass[i] * v2 / dt2;
-          for (int s = row_[i]; s < row_[i + 1]; ++s) {
-            const int q = neighbour_[s];
-            double l2 = 0.0;
-            for (int c = 0; c < 3; ++c) {
-              const double l = x_[3 * q + c] - x_[3 * i + c];
-              l2 += l * l;
-            }
-            const double stretch = std::sqrt(l2) - rest_[s];
-            e += 0.25 * stiffness_[s] * stretch * stretch;  // each spring is seen from both ends
-          }
-        }
-        partial_[blk] = e;
-      }
+      for (int blk = range.begin(); blk != range.end(); ++blk)
+        partial_[blk] = energy_of(blk * kBlock, std::min(n_, (blk + 1) * kBlock));
     });
     double total = 0.0;
     for (int blk = 0; blk < blocks_; ++blk) total += partial_[blk];
@@ -157,7 +193,12 @@ class GeneralVerlet final : public SpringSolver {
   // Gathers spring forces at `x` into force_; returns the largest squared force at a free point
   // (NaN/Inf when any force is not finite).
   double compute_forces(const std::vector<double>& x) {
-    if (!springs_.empty()) return compute_forces_once(x);
+    if (once_) {
+      double largest[2] = {0.0, 0.0};
+      tbb::parallel_invoke([&] { largest[0] = forces_once_half(x, halves_[0]); },
+                           [&] { largest[1] = forces_once_half(x, halves_[1]); });
+      return largest[0] > largest[1] || std::isnan(largest[0]) ? largest[0] : largest[1];
+    }
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
       for (int blk = range.begin(); blk != range.end(); ++blk) {
         double largest = 0.0;
@@ -185,31 +226,60 @@ class GeneralVerlet final : public SpringSolver {
     return largest;
   }
 
-  // One block (no threads): each spring evaluated once, in the system's order, its force added
-  // to its first end and subtracted from its second. A point's rows list its springs in that same
-  // order, and the second end's gather would compute the negated difference, the same length and
-  // the same factor, so every force is the gather's to the bit at half the square roots and
-  // divisions.
-  double compute_forces_once(const std::vector<double>& x) {
-    std::fill(force_.begin(), force_.end(), 0.0);
-    for (const Spring& s : springs_) {
+  // One block: each spring evaluated once, in the system's order, its force added to its first
+  // end and subtracted from its second. A point's rows list its springs in that same order, and
+  // the second end's gather would compute the negated difference, the same length and the same
+  // factor, so every force is the gather's to the bit at half the square roots and divisions.
+  // This is one half of the points (`h`): its forces, and the largest squared force at a free
+  // point among them (NaN when one is not finite).
+  double forces_once_half(const std::vector<double>& x, const SpringHalf& h) {
+    std::fill(force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.begin), force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.end), 0.0);
+    const std::size_t count = h.springs.size();
+    for (std::size_t k = 0; k < count; ++k) {
+      const Spring& s = h.springs[k];
       const std::size_t a = 3 * static_cast<std::size_t>(s.a), b = 3 * static_cast<std::size_t>(s.b);
       const double l[3] = {x[b] - x[a], x[b + 1] - x[a + 1], x[b + 2] - x[a + 2]};
       const double len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
       if (len == 0.0) continue;
       const double w = s.stiffness * (len - s.rest) / len;
-      for (int c = 0; c < 3; ++c) {
-        force_[a + c] += w * l[c];
-        force_[b + c] -= w * l[c];
-      }
+      const unsigned char ends = h.ends[k];
+      if (ends & 1)
+        for (int c = 0; c < 3; ++c) force_[a + c] += w * l[c];
+      if (ends & 2)
+        for (int c = 0; c < 3; ++c) force_[b + c] -= w * l[c];
     }
     double largest = 0.0;
-    for (int i = 0; i < n_; ++i) {
+    for (int i = h.begin; i < h.end; ++i) {
       const double* f = &force_[3 * static_cast<std::size_t>(i)];
       const double f2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
       if (!fixed_[i] && (f2 > largest || std::isnan(f2))) largest = f2;  // NaN sticks
     }
     return largest;
+  }
+
+  // Kinetic and spring energy of points [begin, end) (each spring seen from both ends).
+  double energy_of(int begin, int end) const {
+    const double dt2 = coefficients_.dt * coefficients_.dt;
+    double e = 0.0;
+    for (int i = begin; i < end; ++i) {
+      double v2 = 0.0;
+      for (int c = 0; c < 3; ++c) {
+        const double v = x_[3 * i + c] - prev_[3 * i + c];
+        v2 += v * v;
+      }
+      e += 0.5 * coefficients_.mass[i] * v2 / dt2;
+      for (int s = row_[i]; s < row_[i + 1]; ++s) {
+        const int q = neighbour_[s];
+        double l2 = 0.0;
+        for (int c = 0; c < 3; ++c) {
+          const double l = x_[3 * q + c] - x_[3 * i + c];
+          l2 += l * l;
+        }
+        const double stretch = std::sqrt(l2) - rest_[s];
+        e += 0.25 * stiffness_[s] * stretch * stretch;
+      }
+    }
+    return e;
   }
 
   void check_energy() {
@@ -224,7 +294,8 @@ class GeneralVerlet final : public SpringSolver {
   std::vector<char> fixed_;
   std::vector<int> row_, neighbour_;
   std::vector<double> stiffness_, rest_;
-  std::vector<Spring> springs_;  // only for a one-block system: compute_forces_once
+  bool once_ = false;            // a one-block system: each spring once, in two halves
+  SpringHalf halves_[2];
   std::vector<double> x_, prev_, force_, partial_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
   bool momentum_ = false;
