@@ -24,8 +24,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // Active tetrahedra from which an energy evaluation runs in parallel (below that the threads'
-// start costs more than they save).
-constexpr std::size_t kParallelTets = 2048;
+// start costs more than they save; 2048 before the terms were split in whole vectors: the
+// containment rounds' few hundred points, 3 of the LHDL gluteus maximus's 4 untangle runs, ran
+// on one thread).
+constexpr std::size_t kParallelTets = 256;
 
 // Tetrahedra whose energy terms are computed step by step together (Energy::evaluate).
 constexpr std::size_t kBlock = 8;
@@ -216,10 +218,14 @@ class Energy {
         }
       }
     };
-    if (n >= kParallelTets)
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kParallelTets / 4),
-                        [&](const tbb::blocked_range<std::size_t>& r) { terms(r.begin(), r.end()); });
-    else
+    if (n >= kParallelTets) {
+      // In whole vectors (64 tetrahedra at least a task): a range that split a vector would leave
+      // its rest to the scalar path, several times slower a tetrahedron.
+      const std::size_t unit = 8, units = (n + unit - 1) / unit;
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, units, 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        terms(r.begin() * unit, std::min(n, r.end() * unit));
+      });
+    } else
       terms(0, n);
     double e = 0.0;
     const auto sum_terms = [&] {
