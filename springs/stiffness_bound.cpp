@@ -24,11 +24,13 @@ namespace {
 
 constexpr long kBlock = 4096;  // points per parallel block (fixed: deterministic sums)
 
-// out = M v over free points (fixed points' rows and columns are zero); gather over the rows.
+// out = M v over free points (fixed points' rows and columns are zero); gather over the rows,
+// each point's on its own (any split among threads gives the same bits: in ranges of 512 points,
+// so that a decomposition's lattice of a few thousand uses both cores).
 void multiply(const SpringSystem& system, const SpringRows& rows, const std::vector<double>& v,
               std::vector<double>& out) {
   const long n = static_cast<long>(system.positions.size());
-  tbb::parallel_for(tbb::blocked_range<long>(0, n, kBlock), [&](const tbb::blocked_range<long>& range) {
+  tbb::parallel_for(tbb::blocked_range<long>(0, n, 512), [&](const tbb::blocked_range<long>& range) {
     for (long p = range.begin(); p != range.end(); ++p) {
       double r[3] = {0.0, 0.0, 0.0};
       if (!system.fixed[p]) {
