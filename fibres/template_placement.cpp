@@ -9,6 +9,8 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <numeric>
 #include <unordered_map>
 
@@ -136,13 +138,14 @@ int region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, con
 class StarRadius {
  public:
   StarRadius() = default;
-  StarRadius(const std::vector<Vec3>& pole_vectors, const std::vector<char>& in, bool south, int bins)
+  // From each vertex's polar angle and azimuth in the pole frame.
+  StarRadius(const std::vector<double>& polar, const std::vector<double>& azimuths, const std::vector<char>& in,
+             bool south, int bins)
       : radius_(static_cast<std::size_t>(bins), kPi) {
-    for (std::size_t v = 0; v < pole_vectors.size(); ++v) {
+    for (std::size_t v = 0; v < polar.size(); ++v) {
       if (in[v]) continue;
-      const Vec3& q = pole_vectors[v];
-      const double theta = south ? kPi - polar_angle(q) : polar_angle(q);
-      const std::size_t b = bin(azimuth(q));
+      const double theta = south ? kPi - polar[v] : polar[v];
+      const std::size_t b = bin(azimuths[v]);
       radius_[b] = std::min(radius_[b], theta);
     }
     // A border vertex bounds the edges around it, which reach into the neighbouring azimuths:
@@ -176,6 +179,14 @@ class StarRadius {
   }
   std::vector<double> radius_;
 };
+
+// body(i) for i in [0, n), in parallel: each index's work on its own (the same bits as a loop).
+template <class Body>
+void for_each_index(std::size_t n, const Body& body) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
+  });
+}
 
 // Cumulative share of a measure over [0, 1], as a monotone piecewise-linear function with its
 // inverse.
@@ -322,11 +333,11 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   }
   {
     std::vector<std::pair<double, double>> modulus(nv);
-    double total = 0.0;
-    for (std::size_t v = 0; v < nv; ++v) {
+    for_each_index(nv, [&](std::size_t v) {
       modulus[v] = {std::abs(PoleFrame::stereographic(frame.to_pole(sphere[v]))), vertex_area[v]};
-      total += vertex_area[v];
-    }
+    });
+    double total = 0.0;
+    for (std::size_t v = 0; v < nv; ++v) total += vertex_area[v];
     std::sort(modulus.begin(), modulus.end());
     double acc = 0.0, median = 1.0;
     for (const auto& [m, a] : modulus) {
@@ -339,12 +350,18 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     if (median > 1e-12 && std::isfinite(median)) frame.set_scale(1.0 / median);
   }
   report.moebius_scale = frame.scale();
+  // Per vertex: its pole-frame direction, polar angle and azimuth.
   std::vector<Vec3> pole(nv);
-  for (std::size_t v = 0; v < nv; ++v) pole[v] = frame.to_pole(sphere[v]);
+  std::vector<double> vertex_theta(nv), vertex_phi(nv);
+  for_each_index(nv, [&](std::size_t v) {
+    pole[v] = frame.to_pole(sphere[v]);
+    vertex_theta[v] = polar_angle(pole[v]);
+    vertex_phi[v] = azimuth(pole[v]);
+  });
 
   // Star radii of both regions, kept apart by the lateral band.
-  StarRadius origin_radius(pole, origin_in, false, options.azimuth_bins);
-  StarRadius insertion_radius(pole, insertion_in, true, options.azimuth_bins);
+  StarRadius origin_radius(vertex_theta, vertex_phi, origin_in, false, options.azimuth_bins);
+  StarRadius insertion_radius(vertex_theta, vertex_phi, insertion_in, true, options.azimuth_bins);
   for (std::size_t b = 0; b < origin_radius.values().size(); ++b) {
     double& ro = origin_radius.values()[b];
     double& ri = insertion_radius.values()[b];
@@ -370,18 +387,16 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   // Per vertex and per face, what place() below needs and does not depend on the face scales:
   // pole-frame angles, star radii, cos and sin of the azimuth, face areas (place() runs up to
   // 1 + face_shrink_rounds times).
-  std::vector<double> vertex_theta(nv), vertex_phi(nv), vertex_cos(nv), vertex_sin(nv), vertex_ro(nv), vertex_ri(nv);
-  for (std::size_t v = 0; v < nv; ++v) {
-    vertex_theta[v] = polar_angle(pole[v]);
-    vertex_phi[v] = azimuth(pole[v]);
+  std::vector<double> vertex_cos(nv), vertex_sin(nv), vertex_ro(nv), vertex_ri(nv);
+  for_each_index(nv, [&](std::size_t v) {
     vertex_cos[v] = std::cos(vertex_phi[v]);
     vertex_sin[v] = std::sin(vertex_phi[v]);
     vertex_ro[v] = origin_radius(vertex_phi[v]);
     vertex_ri[v] = insertion_radius(vertex_phi[v]);
-  }
+  });
   const std::size_t n_faces = muscle.triangles.size();
   std::vector<double> face_theta(n_faces), face_phi(n_faces), face_ro(n_faces), face_ri(n_faces), face_area(n_faces);
-  for (std::size_t f = 0; f < n_faces; ++f) {
+  for_each_index(n_faces, [&](std::size_t f) {
     const Triangle& t = muscle.triangles[f];
     const Vec3 c = (pole[t[0]] + pole[t[1]] + pole[t[2]]).normalized();
     face_phi[f] = azimuth(c);
@@ -391,7 +406,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     face_area[f] = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
                              .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
                              .norm();
-  }
+  });
   // Meridian rings: each face's centre and azimuth sector (neither depends on the face scales).
   constexpr int kMeridians = 24;
   std::vector<Vec3> triangle_centre;
@@ -680,9 +695,11 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     // Every surface point of the lattice: template sphere -> muscle pole frame -> muscle sphere.
     const int n = lattice.point_count();
     surface_points.clear();
-    std::vector<Vec3> directions;
-    for (int q = 0; q < n; ++q) {
-      if (!lattice.system.fixed[static_cast<std::size_t>(q)]) continue;
+    for (int q = 0; q < n; ++q)
+      if (lattice.system.fixed[static_cast<std::size_t>(q)]) surface_points.push_back(q);
+    std::vector<Vec3> directions(surface_points.size());
+    for_each_index(surface_points.size(), [&](std::size_t i) {
+      const int q = surface_points[i];
       const Vec3 c = springs::lattice_coordinates(lattice, q);
       const Vec3 tq = template_pole_vector(c);
       const double theta_t = polar_angle(tq);
@@ -707,9 +724,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);
         theta = ro + um * (kPi - ri - ro);
       }
-      surface_points.push_back(q);
-      directions.push_back(frame.from_pole(from_polar(theta, phi)));
-    }
+      directions[i] = frame.from_pole(from_polar(theta, phi));
+    });
     const std::vector<SurfacePoint> located = locator.locate_all(directions);
     out.points.assign(static_cast<std::size_t>(n), SurfacePoint{});
     for (std::size_t i = 0; i < surface_points.size(); ++i) {

@@ -291,7 +291,8 @@ SurfacePoint SphereLocator::locate(const Vec3& p) const { return impl_->locate(p
 
 std::vector<SurfacePoint> SphereLocator::locate_all(const std::vector<Vec3>& directions) const {
   std::vector<SurfacePoint> out(directions.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, directions.size(), 1024),
+  // Ranges of 128: a lattice's ring of several hundred points is located on both cores.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, directions.size(), 128),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t i = range.begin(); i != range.end(); ++i) out[i] = impl_->locate(directions[i]);
                     });
