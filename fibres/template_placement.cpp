@@ -2,6 +2,7 @@
 
 #include "fibres/pole_frame.h"
 #include "geometry/errors.h"
+#include "geometry/detail/for_each_index.h"
 #include "geometry/mesh_stats.h"
 
 #include <algorithm>
@@ -9,8 +10,6 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <numeric>
 #include <unordered_map>
 
@@ -179,14 +178,6 @@ class StarRadius {
   }
   std::vector<double> radius_;
 };
-
-// body(i) for i in [0, n), in parallel: each index's work on its own (the same bits as a loop).
-template <class Body>
-void for_each_index(std::size_t n, const Body& body) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
-  });
-}
 
 // Cumulative share of a measure over [0, 1], as a monotone piecewise-linear function with its
 // inverse.

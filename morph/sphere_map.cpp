@@ -1,6 +1,7 @@
 #include "morph/sphere_map.h"
 
 #include "geometry/errors.h"
+#include "geometry/detail/for_each_index.h"
 #include "morph/mesh_adjacency.h"
 #include "morph/sphere_steps.h"
 
@@ -134,26 +135,30 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
     // are done, before any other start: they often clear the folds' last bad triangles.
     auto reweight_tube = [&]() {
       if (best.kind != "tube" || options.reweight_rounds <= 0) return;
-      auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>* ratio) {
-        double sum = 0.0;
-        for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+      // Each face's ratio and |log ratio| on threads, summed in the faces' order (the same bits
+      // as one loop).
+      std::vector<double> logs(mesh.triangles.size());
+      auto log_mean = [&](const std::vector<Vec3>& x, std::vector<double>& ratio) {
+        for_each_index(mesh.triangles.size(), [&](std::size_t f) {
           const Triangle& t = mesh.triangles[f];
-          const double r = detail::sphere_triangle_area(x[t[0]], x[t[1]], x[t[2]]) / (4.0 * M_PI) / shares[f];
-          if (ratio) (*ratio)[f] = r;
-          sum += std::abs(std::log(std::max(r, 1e-300)));
-        }
+          ratio[f] = detail::sphere_triangle_area(x[t[0]], x[t[1]], x[t[2]]) / (4.0 * M_PI) / shares[f];
+          logs[f] = std::abs(std::log(std::max(ratio[f], 1e-300)));
+        });
+        double sum = 0.0;
+        for (double l : logs) sum += l;
         return sum / static_cast<double>(mesh.triangles.size());
       };
       std::vector<double> ratio(mesh.triangles.size());
-      double current = log_mean(best.sphere, &ratio);
+      double current = log_mean(best.sphere, ratio);
       for (int round = 0; round < options.reweight_rounds && current > options.reweight_target; ++round) {
-        for (std::size_t f = 0; f < scale.size(); ++f)
+        for_each_index(scale.size(), [&](std::size_t f) {
           scale[f] = std::clamp(scale[f] * std::pow(std::max(ratio[f], 1e-12), options.reweight_exponent), 1e-8, 1e8);
+        });
         detail::TutteLift next = tube_embedder.lift(tube_embedder.solve(&scale), best_fold);
         long bad = detail::untangle(mesh, adjacency, next.sphere, options.untangle_sweeps);
         if (bad > 0) bad = detail::reembed_patches(mesh, adjacency, next.sphere, 12);
         std::vector<double> next_ratio(mesh.triangles.size());
-        const double value = log_mean(next.sphere, &next_ratio);
+        const double value = log_mean(next.sphere, next_ratio);
         // Better means fewer bad triangles, or as few and less distortion.
         if (bad > best_bad || (bad == best_bad && !(value < current))) break;
         best_bad = bad;

@@ -1,6 +1,7 @@
 // The tube map for long muscles: cut along a shortest path between the two ends, Tutte-embed the
 // disk into a convex hexagon, fold the hexagon onto a capped prism and project it centrally.
 #include "geometry/errors.h"
+#include "geometry/detail/for_each_index.h"
 #include "morph/sphere_steps.h"
 
 #include <Eigen/SparseCholesky>
@@ -285,7 +286,7 @@ TutteLift TubeEmbedder::lift(const std::vector<Eigen::Vector2d>& uv, TubeFold fo
   if (uv.empty()) return lift;
   lift.sphere.resize(d.nv);
   lift.kind = fold == TubeFold::prism ? "tube" : "tube-lambert";
-  for (int v = 0; v < d.nv; ++v) {
+  for_each_index(static_cast<std::size_t>(d.nv), [&](std::size_t v) {
     const Eigen::Vector2d& p = uv[v];
     if (fold == TubeFold::prism) {
       lift.sphere[v] = hexagon_to_sphere(p);
@@ -295,10 +296,16 @@ TutteLift TubeEmbedder::lift(const std::vector<Eigen::Vector2d>& uv, TubeFold fo
       const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
       lift.sphere[v] = Vec3(r * std::cos(p.x()), r * std::sin(p.x()), z);
     }
-  }
+  });
+  // The triangles' dets on threads, summed in their order.
+  const std::vector<Triangle>& triangles = d.mesh->triangles;
+  std::vector<double> dets(triangles.size());
+  for_each_index(triangles.size(), [&](std::size_t f) {
+    const Triangle& t = triangles[f];
+    dets[f] = sphere_det(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]);
+  });
   double orientation = 0.0;
-  for (const Triangle& t : d.mesh->triangles)
-    orientation += sphere_det(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]);
+  for (double det : dets) orientation += det;
   if (orientation < 0.0)
     for (Vec3& p : lift.sphere) p.x() = -p.x();
   return lift;
