@@ -649,6 +649,34 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
   }
 }
 
+TEST_CASE("a decomposition is the same to the bit on one thread and on two", "[fibres][untangle][data]") {
+  FASCICLE_REQUIRE_DATA();
+  // LHDL right gluteus maximus, default options: the sphere map's rounds and lift, the placement's
+  // per-vertex loops, the general spring solves in two halves, the untangling (51 cells folded
+  // before it; its first run above 2048 active tetrahedra, its containment rounds between 256
+  // and 2048) and the check all run on threads, each summing in a fixed order.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
+  Decomposition one;
+  {
+    tbb::global_control only_one(tbb::global_control::max_allowed_parallelism, 1);
+    one = decompose(soup, {}, DecomposeOptions{});
+  }
+  const Decomposition two = decompose(soup, {}, DecomposeOptions{});
+  const nlohmann::json a = one.report.to_json(), b = two.report.to_json();
+  INFO("one thread: " << a["untangle"].dump() << "\ntwo: " << b["untangle"].dump());
+  REQUIRE(a["untangle"]["inverted_before"].get<long>() > 0);
+  CHECK(a["untangle"]["iterations"] == b["untangle"]["iterations"]);
+  CHECK(a["settle"]["solves"].size() == b["settle"]["solves"].size());
+  for (std::size_t i = 0; i < a["settle"]["solves"].size() && i < b["settle"]["solves"].size(); ++i) {
+    CHECK(a["settle"]["solves"][i]["iterations"] == b["settle"]["solves"][i]["iterations"]);
+    CHECK(a["settle"]["solves"][i]["residual"] == b["settle"]["solves"][i]["residual"]);
+  }
+  CHECK(a["sphere"]["quality"]["area_log_mean"] == b["sphere"]["quality"]["area_log_mean"]);
+  CHECK(one.fibres.lines == two.fibres.lines);  // bitwise
+  CHECK(one.report.quality.coverage.p95 == two.report.quality.coverage.p95);
+  CHECK(two.report.quality.pass);
+}
+
 TEST_CASE("untangle in the decomposition: the free-ring attempts run again with the containment energy where they "
           "leave folds",
           "[fibres][untangle][data][slow]") {

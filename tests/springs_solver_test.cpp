@@ -110,6 +110,7 @@ TEST_CASE("the general path's spring-once loop gives the per-point gather's bits
       options.tolerance = 0.0;
       options.max_iterations = 200;
       options.backend = Backend::general;
+      options.record_energy = true;
       SpringSystem once = lattice.system;
       const SettleReport a = settle(once, options);
       detail::set_general_spring_once(false);
@@ -127,6 +128,9 @@ TEST_CASE("the general path's spring-once loop gives the per-point gather's bits
       CHECK(a.residual_history == b.residual_history);
       CHECK(single.positions == once.positions);
       CHECK(c.residual_history == a.residual_history);
+      CHECK(a.energy_history.size() == 201);
+      CHECK(a.energy_history == b.energy_history);
+      CHECK(c.energy_history == a.energy_history);
     }
   }
 }
