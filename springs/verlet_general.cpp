@@ -111,54 +111,28 @@ class GeneralVerlet final : public SpringSolver {
       momentum = static_cast<double>(since_restart_) / (since_restart_ + 3);
       ++since_restart_;
     }
-    const double* a = coefficients_.a.data();
-    const double* b = coefficients_.b.data();
+    double r2 = 0.0;
     if (once_) {
       // Each half's forces, then its integration, side by side; x_ is only read until the swap.
       double largest[2] = {0.0, 0.0}, power[2] = {0.0, 0.0};
       auto half = [&](int h) {
         largest[h] = forces_once_half(x_, halves_[h]);
-        double p = 0.0;
-        for (int i = halves_[h].begin; i < halves_[h].end; ++i) {
-          const double bi = momentum_ ? momentum : b[i];
-          for (int c = 0; c < 3; ++c) {
-            const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-            const double v = x_[k] - prev_[k];
-            if (!fixed_[i]) p += force_[k] * v;
-            prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
-          }
-        }
-        power[h] = p;
+        power[h] = integrate(halves_[h].begin, halves_[h].end, momentum);
       };
       tbb::parallel_invoke([&] { half(0); }, [&] { half(1); });
-      const double r2 = largest[0] > largest[1] || std::isnan(largest[0]) ? largest[0] : largest[1];
+      r2 = larger(largest[0], largest[1]);
       if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
       power_ = power[0] + power[1];
-      std::swap(x_, prev_);
-      ++iteration_;
-      if (iteration_ % options_.energy_interval == 0) check_energy();
-      return std::sqrt(r2) / scale_;
+    } else {
+      r2 = compute_forces(x_);
+      if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+      tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
+        for (int blk = range.begin(); blk != range.end(); ++blk)
+          partial_[blk] = integrate(blk * kBlock, std::min(n_, (blk + 1) * kBlock), momentum);
+      });
+      power_ = 0.0;
+      for (int blk = 0; blk < blocks_; ++blk) power_ += partial_[blk];
     }
-    const double r2 = compute_forces(x_);
-    if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
-    tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int blk = range.begin(); blk != range.end(); ++blk) {
-        double power = 0.0;
-        const int end = std::min(n_, (blk + 1) * kBlock);
-        for (int i = blk * kBlock; i < end; ++i) {
-          const double bi = momentum_ ? momentum : b[i];
-          for (int c = 0; c < 3; ++c) {
-            const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-            const double v = x_[k] - prev_[k];
-            if (!fixed_[i]) power += force_[k] * v;
-            prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
-          }
-        }
-        partial_[blk] = power;
-      }
-    });
-    power_ = 0.0;
-    for (int blk = 0; blk < blocks_; ++blk) power_ += partial_[blk];
     std::swap(x_, prev_);
     ++iteration_;
     if (iteration_ % options_.energy_interval == 0) check_energy();
@@ -197,7 +171,7 @@ class GeneralVerlet final : public SpringSolver {
       double largest[2] = {0.0, 0.0};
       tbb::parallel_invoke([&] { largest[0] = forces_once_half(x, halves_[0]); },
                            [&] { largest[1] = forces_once_half(x, halves_[1]); });
-      return largest[0] > largest[1] || std::isnan(largest[0]) ? largest[0] : largest[1];
+      return larger(largest[0], largest[1]);
     }
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
       for (int blk = range.begin(); blk != range.end(); ++blk) {
@@ -255,6 +229,29 @@ class GeneralVerlet final : public SpringSolver {
       if (!fixed_[i] && (f2 > largest || std::isnan(f2))) largest = f2;  // NaN sticks
     }
     return largest;
+  }
+
+  // One Verlet (or momentum) update of points [begin, end) from force_ into prev_ (the next
+  // positions; fixed points keep theirs); returns their power, force . velocity over free points.
+  double integrate(int begin, int end, double momentum) {
+    const double* a = coefficients_.a.data();
+    const double* b = coefficients_.b.data();
+    double power = 0.0;
+    for (int i = begin; i < end; ++i) {
+      const double bi = momentum_ ? momentum : b[i];
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+        const double v = x_[k] - prev_[k];
+        if (!fixed_[i]) power += force_[k] * v;
+        prev_[k] = fixed_[i] ? x_[k] : x_[k] + bi * v + a[i] * force_[k];
+      }
+    }
+    return power;
+  }
+
+  // The larger of two halves' largest squared forces; a NaN in either sticks, as in one loop.
+  static double larger(double first, double second) {
+    return first > second || std::isnan(first) ? first : second;
   }
 
   // Kinetic and spring energy of points [begin, end) (each spring seen from both ends).
