@@ -2,6 +2,7 @@
 // disk into a convex hexagon, fold the hexagon onto a capped prism and project it centrally.
 #include "geometry/errors.h"
 #include "geometry/detail/for_each_index.h"
+#include "morph/parallel_ldlt.h"
 #include "morph/sphere_steps.h"
 
 #include <Eigen/SparseCholesky>
@@ -89,7 +90,7 @@ struct TubeEmbedder::Impl {
   Eigen::SparseMatrix<double> system;         // Dirichlet Laplacian, pattern fixed
   std::vector<int> system_slot;               // per stored weight: slot in system, -1 to the rhs
   std::vector<int> diagonal_slot;             // per unknown: slot of its diagonal
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  ParallelLDLT solver;  // Eigen's SimplicialLDLT, the same bits, subtrees on threads
 };
 
 TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, const std::array<int, 2>& ends)
@@ -251,7 +252,7 @@ std::vector<Eigen::Vector2d> TubeEmbedder::solve(const std::vector<double>* face
   }
   d.solver.factorize(d.system);
   if (d.solver.info() != Eigen::Success) throw SolverError("sphere map: the tube system could not be factorised");
-  const Eigen::MatrixXd solution = d.solver.solve(rhs);
+  const Eigen::MatrixXd solution = d.solver.solve_columns(rhs);
   if (d.solver.info() != Eigen::Success || !solution.allFinite())
     throw SolverError("sphere map: the tube solve failed or produced NaN");
   std::vector<Eigen::Vector2d> uv = d.uv;
