@@ -154,20 +154,30 @@ void ParallelLDLT::analyzePattern(const Matrix& a) {
       return out;
     }
 
-    // A big subtree: its chain of single big children down to a branching, then the branches.
+    // A big subtree: down from r while a node has one big child (the chain), the small
+    // subtrees hanging off the chain and the children where it ends as this task's items, the
+    // chain as its rows. So the tasks nest only where two big subtrees branch (at most about
+    // total / grain deep), however long the chains.
     int subtree_task(Index r) {
       Task task;
+      std::vector<Index> hanging;
       Index v = r;
       for (;;) {
         task.rows.push_back(v);
-        const std::vector<Index>& kids = children[v];
-        if (kids.size() == 1 && subtree[kids[0]] > grain) {
-          v = kids[0];
+        Index big = -1;
+        int bigs = 0;
+        for (Index c : children[v])
+          if (subtree[c] > grain) big = c, ++bigs;
+        if (bigs == 1) {
+          for (Index c : children[v])
+            if (c != big) hanging.push_back(c);
+          v = big;
           continue;
         }
+        for (Index c : children[v]) hanging.push_back(c);
         break;
       }
-      task.items = siblings(children[v]);
+      task.items = siblings(hanging);
       std::reverse(task.rows.begin(), task.rows.end());
       tasks.push_back(std::move(task));
       return static_cast<int>(tasks.size()) - 1;

@@ -135,3 +135,32 @@ TEST_CASE("ParallelLDLT reports a zero pivot as Eigen does, and handles a forest
     require_same(reference, ours, Eigen::MatrixXd::Ones(n, 2));
   });
 }
+
+TEST_CASE("ParallelLDLT plans a long caterpillar elimination tree without deep nesting", "[morph][ldlt]") {
+  // A path of m nodes with a leaf on each: elimination trees of such matrices are long chains
+  // with small subtrees hanging off them (a task per chain node would nest m deep).
+  const int m = 100000, n = 2 * m;
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int i = 0; i < m; ++i) {
+    entries.emplace_back(i, i, 4.0);
+    entries.emplace_back(m + i, m + i, 2.0);
+    entries.emplace_back(i, m + i, -1.0);
+    entries.emplace_back(m + i, i, -1.0);
+    if (i + 1 < m) {
+      entries.emplace_back(i, i + 1, -1.0);
+      entries.emplace_back(i + 1, i, -1.0);
+    }
+  }
+  Matrix a(n, n);
+  a.setFromTriplets(entries.begin(), entries.end());
+  a.makeCompressed();
+  tbb::task_arena arena(2);
+  arena.execute([&] {
+    EigenLDLT reference;
+    ParallelLDLT ours;
+    reference.compute(a);
+    ours.compute(a);
+    REQUIRE(ours.info() == Eigen::Success);
+    require_same(reference, ours, Eigen::MatrixXd::Ones(n, 2));
+  });
+}
