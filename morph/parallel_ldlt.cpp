@@ -64,6 +64,15 @@ void ParallelLDLT::analyzePattern(const Matrix& a) {
     for (Eigen::Index s = 0; s < plan.permuted.nonZeros(); ++s)
       plan.gather[static_cast<std::size_t>(s)] = static_cast<int>(plan.permuted.valuePtr()[s]);
   }
+  const int threads = std::max(1, tbb::this_task_arena::max_concurrency());
+  plan.tasks.clear();
+  if (threads == 1) {  // one task: every row in order, as Eigen
+    Task all;
+    all.rows.resize(static_cast<std::size_t>(n));
+    for (Index k = 0; k < n; ++k) all.rows[static_cast<std::size_t>(k)] = k;
+    plan.tasks.push_back(std::move(all));
+    return;
+  }
   // Each row's work: the column entries its triangular solve reads (a symbolic run).
   std::vector<double> cost(static_cast<std::size_t>(n), 0.0);
   {
@@ -96,18 +105,9 @@ void ParallelLDLT::analyzePattern(const Matrix& a) {
   }
   double total = 0.0;
   for (Index r : roots) total += subtree[r];
-  const int threads = std::max(1, tbb::this_task_arena::max_concurrency());
-  plan.tasks.clear();
-  if (threads == 1) {  // one task: every row in order, as Eigen
-    Task all;
-    all.rows.resize(static_cast<std::size_t>(n));
-    for (Index k = 0; k < n; ++k) all.rows[static_cast<std::size_t>(k)] = k;
-    plan.tasks.push_back(std::move(all));
-    return;
-  }
   // Subtrees below this much work run as one task.
   const double grain = std::max(total / (8.0 * threads), 2000.0);
-  // Every node of the subtree of r, in increasing order.
+  // Every node of the subtree of r, appended to `out` (in no order: callers sort).
   auto collect = [&](Index r, std::vector<Index>& out) {
     std::vector<Index> stack{r};
     while (!stack.empty()) {
