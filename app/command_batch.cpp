@@ -342,7 +342,8 @@ void add_batch_command(CLI::App& app) {
                            "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-retry",
                            "--end-fraction", "--connected-ends", "--connect-margin", "--max-end-fraction",
                            "--placement-end-share", "--end-share-retry", "--harmonic-direct-points", "--contain-segments",
-                           "--meridian-rings", "--even-layers-ratio", "--edge-cell", "--edge-cell-fallback"}) {
+                           "--meridian-rings", "--even-layers-ratio", "--edge-cell", "--edge-cell-fallback",
+                           "--landmark-narrow-retry"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

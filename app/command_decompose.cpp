@@ -218,6 +218,10 @@ void add_decompose_command(CLI::App& app) {
                   "With --edge-cell below 1: when the first try fails the check, decompose again with edge cells of "
                   "1 and every retry, and keep the better result")
       ->capture_default_str();
+  cmd->add_option("--landmark-narrow-retry", o.landmark_narrow_retry,
+                  "Landmark areas: when every try fails the check, run the plan once more with --meridian-rings "
+                  "true and --edge-cell 0.5, and keep the better result")
+      ->capture_default_str();
   cmd->add_option("--retry", o.retry_alternative,
                   "When the fibres fail the check, decompose once more with the alternative placement (even "
                   "perimeter and shallow contact switched) and keep the better result")

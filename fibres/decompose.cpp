@@ -1085,6 +1085,32 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   } else {
     plan = run_plan(muscle, query, sphere, prepared, landmarks, options, gpu, "none");
   }
+  // Landmark areas that failed every try: the plan once more with meridian rings and narrow edge
+  // cells, the better result kept.
+  if (landmarks.given() && options.landmark_narrow_retry && !plan.best.report.quality.pass &&
+      options.edge_cell >= 1.0 && !options.placement.meridian_rings) {
+    DecomposeOptions narrow = options;
+    narrow.placement.meridian_rings = true;
+    narrow.edge_cell = 0.5;
+    narrow.edge_cell_fallback = false;
+    narrow.even_layers_ratio = 0.0;
+    try {
+      const PreparedLattice prepared_narrow = prepare_lattice(narrow);
+      PlanResult extra = run_plan(muscle, query, sphere, prepared_narrow, landmarks, narrow, gpu, "landmark_narrow");
+      const int offset = static_cast<int>(plan.attempts.size());
+      for (auto& attempt : extra.attempts) plan.attempts.push_back(std::move(attempt));
+      plan.seconds += extra.seconds;
+      if (better_result(extra.best.report.quality, plan.best.report.quality)) {
+        plan.best = std::move(extra.best);
+        plan.kept = offset + extra.kept;
+      }
+    } catch (const Error& e) {
+      nlohmann::json failed = attempt_header("landmark_narrow", narrow);
+      failed["status"] = "error";
+      failed["error"] = e.what();
+      plan.attempts.push_back(std::move(failed));
+    }
+  }
   Decomposition best = std::move(plan.best);
   best.report.attempts = std::move(plan.attempts);
   best.report.kept_attempt = plan.kept;

@@ -183,9 +183,10 @@ struct DecomposeOptions {
   /// with meridian rings; docs/BENCHMARKS.md, "Decompose", twenty-second session).
   double even_layers_ratio = 2.5;
   /// Width of the lattice cells between the surface ring and the outermost fibres, in fibre
-  /// spacings (springs::LatticeOptions::edge_cell; default 0.5: each fibre at the centre of its
-  /// share of the cross-section, so that the outermost fibres lie half a spacing from the surface
-  /// instead of a whole one; 1 spaces the ring like the fibres, the choice before 2026-11-28).
+  /// spacings (springs::LatticeOptions::edge_cell; default 1: the ring spaced like the fibres;
+  /// 0.5 puts each fibre at the centre of its share of the cross-section, so that the outermost
+  /// fibres lie half a spacing from the surface instead of a whole one, but costs the settle
+  /// about 60 ms on the LHDL gluteus maximus).
   /// Measured on the corpus (docs/BENCHMARKS.md, "Decompose", twenty-third session): median
   /// coverage p95 1.47 with 1, 1.03 with 0.5; but 0.5 folds two muscles that pass with 1, so
   /// see edge_cell_fallback. In (0, 1].
@@ -196,6 +197,15 @@ struct DecomposeOptions {
   /// attempts (untangle.free_ring), which take most of a failing try's time. With false, every
   /// try uses edge_cell.
   bool edge_cell_fallback = true;
+  /// Landmark areas only: when the whole plan (edge cells as edge_cell, level or meridian rings,
+  /// every retry) fails the check, run it once more with meridian rings and edge cells of 0.5
+  /// (no fallback, no layer-ratio try) and keep the better result (default true; no effect when
+  /// edge_cell is already below 1 or meridian rings are asked for). A result that passes before
+  /// this stage is never changed by it. Why: with its landmark files the LHDL psoas, whose origin
+  /// strip runs down its side and whose tendon hooks, fails every earlier try; this stage passes
+  /// with the parallel template (coverage p95 1.992, 0 folded cells), not with curved, fanned or
+  /// rectus (docs/BENCHMARKS.md, "Decompose", twenty-fifth session).
+  bool landmark_narrow_retry = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -248,7 +258,8 @@ DecomposeOptions alternative_placement(const DecomposeOptions& options);
 /// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
 /// the strips off) and the same plan again with the strips off, each change prefixed
 /// "landmark_disks_". Retries do not retry. (After the plan, decompose may add "meridian_rings"
-/// tries: DecomposeOptions::even_layers_ratio.)
+/// tries, DecomposeOptions::even_layers_ratio, and with landmark areas that failed every try the
+/// whole plan again from "landmark_narrow", DecomposeOptions::landmark_narrow_retry.)
 struct RetryStep {
   std::string change;        ///< what the step changes (the names above), for the report
   DecomposeOptions options;  ///< the options of the whole decomposition tried

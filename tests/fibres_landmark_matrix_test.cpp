@@ -218,3 +218,31 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
   CHECK(passed >= 4);  // measured: 5 of 5 (2 of the first 3 before the strips; the last 2 failed
                        // before the centres moved towards the far ends)
 }
+
+TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on the narrow meridian stage",
+          "[fibres][decompose][corpus][slow]") {
+  // Measured 2026-11-28 (docs/BENCHMARKS.md, "Decompose", twenty-fifth session): every try of the
+  // plan fails (its origin strip runs down the side, its tendon hooks: at best 0 folded cells and
+  // coverage p95 2.205); the plan run again with meridian rings and edge cells of 0.5
+  // (DecomposeOptions::landmark_narrow_retry) passes. About 4 minutes on 2 cores.
+  FASCICLE_REQUIRE_DATA();
+  const LandmarkRun run =
+      run_lhdl("LHDL_R_M090_Psoas", "LHDL_R_M090_Psoas_smooth.415.vtk", springs::TemplateKind::parallel);
+  const CheckReport& q = run.result.report.quality;
+  const nlohmann::json& attempts = run.report["attempts"];
+  INFO(attempts.dump());
+  const auto kept = static_cast<std::size_t>(run.report["kept_attempt"].get<int>());
+  REQUIRE(kept < attempts.size());
+  CHECK(q.pass);
+  CHECK(q.inverted_cells == 0);
+  CHECK(q.coverage.p95 <= 2.0);
+  // The kept result is the stage's; every try before the stage failed.
+  CHECK(attempts[kept]["meridian_rings"].get<bool>());
+  CHECK(attempts[kept]["edge_cell"].get<double>() == 0.5);
+  std::size_t stage = attempts.size();
+  for (std::size_t a = 0; a < attempts.size(); ++a)
+    if (attempts[a]["change"] == "landmark_narrow") stage = std::min(stage, a);
+  REQUIRE(stage < attempts.size());
+  CHECK(kept >= stage);
+  for (std::size_t a = 0; a < stage; ++a) CHECK(attempts[a]["status"] != "ok");
+}
