@@ -81,6 +81,7 @@ TEST_CASE("landmark twists: retried only with landmark areas, only while the che
   options.check.max_coverage_p95 = 0.01;
   options.landmark_twists_deg = {0.0, 30.0};
   options.retry_alternative = false;  // only the twists here (the alternative: fibres_decompose_test)
+  options.landmark_narrow_retry = false;  // its own test below
   Landmarks landmarks;
   landmarks.origin = {Vec3(0, 0, 6.5), Vec3(0.3, 0, 6.45), Vec3(0, 0.3, 6.45)};
   landmarks.insertion = {Vec3(0, 0, -6.5), Vec3(0.3, 0, -6.45), Vec3(0, 0.3, -6.45)};
@@ -245,4 +246,58 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
   REQUIRE(stage < attempts.size());
   CHECK(kept >= stage);
   for (std::size_t a = 0; a < stage; ++a) CHECK(attempts[a]["status"] != "ok");
+}
+
+TEST_CASE("landmark narrow stage: the whole plan again with meridian rings and narrow edge cells only after every try failed",
+          "[fibres][decompose]") {
+  // The capsule and the check no decomposition can pass of the twists' test above.
+  TriangleMesh mesh = make_capsule(10.0, 1.5, 24);
+  for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
+  DecomposeOptions options;
+  options.fibres = 16;
+  options.resolution = 8;
+  options.check.max_coverage_p95 = 0.01;
+  options.landmark_twists_deg = {30.0};
+  options.retry_alternative = false;
+  options.strip.disk_fallback = false;
+  REQUIRE(options.landmark_narrow_retry);  // the default
+  Landmarks landmarks;
+  landmarks.origin = {Vec3(0, 0, 6.5), Vec3(0.3, 0, 6.45), Vec3(0, 0.3, 6.45)};
+  landmarks.insertion = {Vec3(0, 0, -6.5), Vec3(0.3, 0, -6.45), Vec3(0, 0.3, -6.45)};
+  landmarks.origin_source = "origin";
+  landmarks.insertion_source = "insertion";
+
+  const Decomposition given = decompose_repaired(mesh, landmarks, options);
+  const nlohmann::json& attempts = given.report.attempts;
+  INFO(attempts.dump());
+  CHECK(given.report.status == "failed");
+  // The plan (the default twist, then 30 degrees), then the same plan from "landmark_narrow"
+  // with meridian rings and edge cells of 0.5.
+  REQUIRE(attempts.size() == 4);
+  CHECK(attempts[0]["change"] == "none");
+  CHECK(attempts[2]["change"] == "landmark_narrow");
+  CHECK(attempts[3]["corner_twist_deg"].get<double>() == 30.0);
+  for (std::size_t a = 0; a < attempts.size(); ++a) {
+    CHECK(attempts[a]["meridian_rings"].get<bool>() == (a >= 2));
+    CHECK(attempts[a]["edge_cell"].get<double>() == (a >= 2 ? 0.5 : 1.0));
+  }
+  const auto kept = static_cast<std::size_t>(given.report.kept_attempt);
+  REQUIRE(kept < attempts.size());
+  for (std::size_t a = 0; a < attempts.size(); ++a)
+    CHECK(attempts[a]["failed"].size() >= attempts[kept]["failed"].size());
+  CHECK(attempts[kept]["coverage_p95"].get<double>() == given.report.quality.coverage.p95);
+
+  // Off, or automatic areas, or meridian rings already asked for: no stage.
+  DecomposeOptions off = options;
+  off.landmark_narrow_retry = false;
+  CHECK(decompose_repaired(mesh, landmarks, off).report.attempts.size() == 2);
+  const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
+  for (const auto& attempt : automatic.report.attempts) CHECK(attempt["change"] != "landmark_narrow");
+  DecomposeOptions meridian = options;
+  meridian.placement.meridian_rings = true;
+  CHECK(decompose_repaired(mesh, landmarks, meridian).report.attempts.size() == 2);
+
+  // A check that passes: the plan stops at its first try.
+  options.check = CheckOptions{};
+  CHECK(decompose_repaired(mesh, landmarks, options).report.attempts.size() == 1);
 }
