@@ -225,7 +225,7 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
   // Measured 2026-11-28 (docs/BENCHMARKS.md, "Decompose", twenty-fifth session): every try of the
   // plan fails (its origin strip runs down the side, its tendon hooks: at best 0 folded cells and
   // coverage p95 2.205); the plan run again with meridian rings and edge cells of 0.5
-  // (DecomposeOptions::landmark_narrow_retry) passes. About 4 minutes on 2 cores.
+  // (DecomposeOptions::landmark_narrow_retry) passes. 330 s alone on 2 cores, 406 s in CI.
   FASCICLE_REQUIRE_DATA();
   const LandmarkRun run =
       run_lhdl("LHDL_R_M090_Psoas", "LHDL_R_M090_Psoas_smooth.415.vtk", springs::TemplateKind::parallel);
