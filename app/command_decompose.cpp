@@ -240,6 +240,16 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--untangle", o.untangle_cells,
                   "Unfold the cells the settle leaves inverted (barrier untangling, fibres/untangle.h)")
       ->capture_default_str();
+  cmd->add_option("--untangle-iterations", o.untangle.iterations,
+                  "Untangling: L-BFGS iterations each attempt may spend, all its rounds together")
+      ->capture_default_str();
+  cmd->add_option("--untangle-contact-rounds", o.untangle.contact_rounds,
+                  "Untangling: rounds in which the points left outside get soft pins just inside and the untangling "
+                  "runs again (the points still outside after them are fixed just inside)")
+      ->capture_default_str();
+  cmd->add_option("--untangle-keep-best", o.untangle.solver.keep_best,
+                  "Untangling: each run returns the best state it met when it ends worse")
+      ->capture_default_str();
   cmd->add_option("--end-anchor-weight", o.untangle.end_anchor_weight,
                   "Untangling: weight of the soft pins holding the fibre ends at their cast places")
       ->capture_default_str();

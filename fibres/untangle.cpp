@@ -453,6 +453,7 @@ nlohmann::json UntangleReport::to_json() const {
           {"outside_before", outside_before},
           {"outside_after", outside_after},
           {"containment_scale", containment_scale},
+          {"reverted", reverted},
           {"seconds", seconds}};
 }
 
@@ -509,6 +510,19 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     double best_min_det = now.min_det;
     long best_inverted = now.inverted;
     long best_outside = outside;
+    // The best state met (the entry one first): fewest inverted, then fewest containment points
+    // outside, then the largest smallest det J (also when none is inverted). The run returns it
+    // when it ends worse: a run that starts near an unfolded state with a wider eps can fold
+    // more cells than it found, and soft pins that gain nothing on either count only worsen
+    // the worst cell (the pins at the end of the lattice untangling place what is still outside).
+    std::vector<Vec3> kept_positions = positions;
+    Census kept = now;
+    long kept_outside = outside;
+    auto better = [](const Census& a, long a_out, const Census& b, long b_out) {
+      if (a.inverted != b.inverted) return a.inverted < b.inverted;
+      if (a_out != b_out) return a_out < b_out;
+      return a.min_det > b.min_det;
+    };
     int stalled = 0;
     for (int stage = 0; stage < options.max_stages; ++stage) {
       report.iterations += minimise(energy, x, eps, options.stage_iterations, options.history);
@@ -516,6 +530,11 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       report.eps = eps;
       now = census(positions, tets, options.min_det);
       outside = energy.outside_count();
+      if (options.keep_best && better(now, outside, kept, kept_outside)) {
+        kept_positions = positions;
+        kept = now;
+        kept_outside = outside;
+      }
       if (now.inverted == 0 && outside == 0) break;
       // Progress: fewer inverted, a larger smallest det while some are inverted, fewer outside.
       if ((now.inverted > 0 && now.min_det > best_min_det + 1e-6) || now.inverted < best_inverted ||
@@ -541,6 +560,12 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       if (outside > 0)
         energy.containment_scale = std::min(containment.max_scale, energy.containment_scale * containment.growth);
       e_prev = energy.evaluate(x, eps, nullptr);
+    }
+    if (options.keep_best && better(kept, kept_outside, now, outside)) {
+      positions = kept_positions;
+      now = kept;
+      x = energy.get();
+      ++report.reverted;
     }
     if (now.inverted == 0 && options.polish_iterations > 0) {
       // Improve the shapes with the barrier in force (a small eps keeps every det positive).

@@ -13,7 +13,8 @@
 /// with a backtracking line search, eps lowered after each stage by the paper's rule (from the
 /// smallest det J and the energy's relative decrease, at least `min_sigma`), until every
 /// tetrahedron is positive, then a few more iterations improve the shapes with the barrier in
-/// force.
+/// force. A run that ends worse than the best state it met returns that state
+/// (UntangleOptions::keep_best).
 ///
 /// The fibre lattice uses it to unfold the cells that the settle leaves inverted
 /// (fibres/decompose.h): hexahedral cells split into the six tetrahedra of the Kuhn
@@ -50,6 +51,13 @@ struct UntangleOptions {
   /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
   /// (default 1e-4: well clear of the round-off limit of the quality check).
   double min_det = 1e-4;
+  /// Return the best state the run met when it ends worse (true), or always the last state
+  /// (false) (default true). Best: fewest counted inverted tetrahedra, then fewest containment
+  /// points outside, then the largest smallest det J (also with none inverted, so that soft pins
+  /// that gain nothing on the counts are undone where they only worsen the worst cell); the entry
+  /// state and each stage's end are compared, the earlier kept on a tie. The polish runs from the
+  /// state returned.
+  bool keep_best = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;
 };
@@ -131,6 +139,7 @@ struct UntangleReport {
   long outside_before = 0;     ///< containment points with d > 0 before (0 without containment)
   long outside_after = 0;      ///< and after
   double containment_scale = 1.0;  ///< the containment's last scale
+  int reverted = 0;            ///< 1 when the run returned an earlier, better state (keep_best)
   bool untangled() const { return inverted_after == 0; }
   nlohmann::json to_json() const;
 };

@@ -130,7 +130,9 @@ TEST_CASE("untangle: uncounted tetrahedra do not stop it; anchors pull", "[fibre
   const int q = g.index(2, 2, 2);
   const Vec3 start = g.positions[static_cast<std::size_t>(q)];
   const Vec3 target = start + Vec3(0.05, 0.0, 0.0);
-  const UntangleReport r = untangle(g.positions, g.fixed, g.tets, {}, {{q, target, 1e4}});
+  UntangleOptions pull;
+  pull.keep_best = false;  // the pull only worsens the worst cell: with keep_best it is undone (below)
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets, pull, {{q, target, 1e4}});
   CHECK(r.untangled());
   // Pulled most of the way to the anchor, against the cells' pull back.
   CHECK((g.positions[static_cast<std::size_t>(q)] - target).norm() < 0.5 * (start - target).norm());
@@ -153,7 +155,9 @@ TEST_CASE("untangle: ball and plane pins pull only where they should", "[fibres]
     anchor.point = q;
     anchor.target = start + Vec3(0.05, 0.0, 0.0);
     anchor.weight = 1e4;
-    const UntangleReport r = untangle(g.positions, g.fixed, g.tets, {}, {anchor});
+    UntangleOptions pull;
+    pull.keep_best = false;  // see the test above
+    const UntangleReport r = untangle(g.positions, g.fixed, g.tets, pull, {anchor});
     CHECK(r.untangled());
     return Vec3(g.positions[static_cast<std::size_t>(q)] - start);
   };
@@ -195,13 +199,61 @@ TEST_CASE("untangle: with nothing inverted, soft pins alone pull (the containmen
   const int q = g.index(2, 2, 2);
   const Vec3 start = g.positions[static_cast<std::size_t>(q)];
   const Vec3 target = start + Vec3(0.05, 0.0, 0.0);
-  const UntangleReport r = untangle(g.positions, g.fixed, g.tets, UntangleOptions{}, {{q, target, 1e4}});
+  UntangleOptions pull;
+  pull.keep_best = false;
+  const UntangleReport r = untangle(g.positions, g.fixed, g.tets, pull, {{q, target, 1e4}});
   INFO(r.to_json().dump());
   CHECK(inverted(g.positions, g.tets) == 0);
   CHECK(r.stages >= 1);
   CHECK(r.iterations > 0);
   CHECK(r.untangled());
+  CHECK(r.reverted == 0);
   CHECK((g.positions[static_cast<std::size_t>(q)] - target).norm() / (start - target).norm() < 0.5);
+
+  // With keep_best (the default) the same pull is undone: it folds nothing, unfolds nothing and
+  // brings no containment point inside, and only lowers the smallest det J (the polish after it,
+  // which runs from the state kept, is off here).
+  Grid h = make_grid(5);
+  const std::vector<Vec3> entry = h.positions;
+  UntangleOptions keep;
+  keep.polish_iterations = 0;
+  const UntangleReport k = untangle(h.positions, h.fixed, h.tets, keep, {{q, target, 1e4}});
+  INFO(k.to_json().dump());
+  CHECK(k.iterations > 0);
+  CHECK(k.reverted == 1);
+  CHECK(h.positions == entry);  // bitwise
+  CHECK(k.min_det_after == k.min_det_before);
+}
+
+TEST_CASE("untangle: a run that ends with more folded cells than it met returns the best state it met",
+          "[fibres][untangle]") {
+  // An unfolded grid whose centre point a stiff anchor pulls through its neighbour along x: one
+  // stage of the wide starting eps lets the cells fold. Without keep_best the run ends folded;
+  // with it the run returns its entry state, bit for bit.
+  auto run = [](bool keep_best, std::vector<Vec3>* entry) {
+    Grid g = make_grid(5);
+    if (entry) *entry = g.positions;
+    const int q = g.index(2, 2, 2);
+    const Vec3 target = g.positions[static_cast<std::size_t>(q)] + Vec3(0.6, 0.0, 0.0);
+    UntangleOptions options;
+    options.max_stages = 1;
+    options.polish_iterations = 0;
+    options.keep_best = keep_best;
+    const UntangleReport r = untangle(g.positions, g.fixed, g.tets, options, {{q, target, 1e6}});
+    return std::make_pair(r, g.positions);
+  };
+  const auto [plain, plain_positions] = run(false, nullptr);
+  INFO("without: " << plain.to_json().dump());
+  REQUIRE(plain.inverted_before == 0);
+  CHECK(plain.inverted_after > 0);
+  CHECK(plain.reverted == 0);
+  std::vector<Vec3> entry;
+  const auto [kept, kept_positions] = run(true, &entry);
+  INFO("with: " << kept.to_json().dump());
+  CHECK(kept.inverted_after == 0);
+  CHECK(kept.reverted == 1);
+  CHECK(kept_positions == entry);
+  CHECK(kept.to_json().at("reverted") == 1);
 }
 
 TEST_CASE("untangle: problems smaller than, and not a multiple of, the block of the energy's terms",
