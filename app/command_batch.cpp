@@ -344,7 +344,7 @@ void add_batch_command(CLI::App& app) {
                            "--placement-end-share", "--end-share-retry", "--harmonic-direct-points", "--contain-segments",
                            "--meridian-rings", "--even-layers-ratio", "--edge-cell", "--edge-cell-fallback",
                            "--landmark-narrow-retry", "--untangle-iterations", "--untangle-contact-rounds",
-                           "--untangle-keep-best"}) {
+                           "--untangle-keep-best", "--untangle-across-spacing"}) {
     auto value = std::make_shared<std::string>();
     cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
         ->each([args, name](const std::string& v) {

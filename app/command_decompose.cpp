@@ -247,6 +247,10 @@ void add_decompose_command(CLI::App& app) {
                   "Untangling: rounds in which the points left outside get soft pins just inside and the untangling "
                   "runs again (the points still outside after them are fixed just inside)")
       ->capture_default_str();
+  cmd->add_option("--untangle-across-spacing", o.untangle.across_spacing,
+                  "Untangling: measure depths under the surface and pin weights in the lattice spacing across the "
+                  "fibres (true) or in the mean length of all springs at a point, along the fibres too (false)")
+      ->capture_default_str();
   cmd->add_option("--untangle-keep-best", o.untangle.solver.keep_best,
                   "Untangling: each run returns the best state it met when it ends worse")
       ->capture_default_str();

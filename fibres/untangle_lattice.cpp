@@ -66,6 +66,23 @@ std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
   return sum;
 }
 
+std::vector<double> lattice_across_spacing(const springs::Lattice& lattice, const springs::SpringSystem& system) {
+  std::vector<double> spacing = lattice_local_spacing(system);
+  const int plane = lattice.nx * lattice.ny, n = lattice.point_count();
+  std::vector<double> sum(spacing.size(), 0.0), count(spacing.size(), 0.0);
+  for (const springs::Spring& s : system.springs) {
+    if (s.a >= n || s.b >= n || s.a / plane != s.b / plane) continue;
+    const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
+    sum[static_cast<std::size_t>(s.a)] += l;
+    sum[static_cast<std::size_t>(s.b)] += l;
+    count[static_cast<std::size_t>(s.a)] += 1.0;
+    count[static_cast<std::size_t>(s.b)] += 1.0;
+  }
+  for (std::size_t i = 0; i < spacing.size(); ++i)
+    if (count[i] > 0.0) spacing[i] = sum[i] / count[i];
+  return spacing;
+}
+
 Vec3 lattice_contact_point(const springs::SpringSystem& system, int lattice_points, const SurfaceQuery& query, int q,
                            double depth_in_spacings, const std::vector<double>& spacing) {
   const Vec3 p = system.positions[static_cast<std::size_t>(q)];
@@ -227,6 +244,11 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   const double area_limit = options.end_area_margin * length;  // farthest an end may lie from its area
   const double area_ball = 0.8 * area_limit;                     // where its soft pin starts to pull
   const std::vector<UntangleTet> tets = lattice_cell_tets(lattice, system.positions);
+  // The local spacing the depths are measured in (across_spacing); the weights stay per squared
+  // lattice_local_spacing().
+  auto spacing_now = [&] {
+    return options.across_spacing ? lattice_across_spacing(lattice, system) : lattice_local_spacing(system);
+  };
   // The signed-distance grid of the containment energy, made on first use (cells a quarter of the
   // 10th-percentile local spacing, over the lattice's box widened by 3 of the largest spacings).
   std::unique_ptr<SignedDistanceGrid> distance_grid;
@@ -344,7 +366,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     // (the outward direction there; renewed each round): it may slide along the surface.
     auto renew_ring = [&] {
       if (ring_anchor.empty()) return;
-      const std::vector<double> sp = lattice_local_spacing(system);
+      const std::vector<double> sp = spacing_now();
       for (const auto& [q, a] : ring_anchor) {
         const Vec3& x = system.positions[static_cast<std::size_t>(q)];
         const int plane = lattice.nx * lattice.ny;
@@ -390,7 +412,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     }
     auto renew_containment = [&] {
       if (!contain) return;
-      const std::vector<double> sp = lattice_local_spacing(system);
+      const std::vector<double> sp = spacing_now();
+      const std::vector<double> weight_sp = lattice_local_spacing(system);
       std::vector<int> candidates;
       for (int k = 0; k < lattice.nz; ++k)
         for (int j = 0; j < lattice.ny; ++j)
@@ -411,8 +434,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       for (std::size_t c = 0; c < candidates.size(); ++c) {
         const int q = candidates[c];
         if (!near[c] && !out.count(q)) continue;
-        const double h = sp[static_cast<std::size_t>(q)];
-        containment.points.push_back({q, options.contact_weight / (h * h), options.containment_margin * h});
+        const double h = weight_sp[static_cast<std::size_t>(q)];
+        containment.points.push_back(
+            {q, options.contact_weight / (h * h), options.containment_margin * sp[static_cast<std::size_t>(q)]});
       }
     };
     outside.clear();
@@ -519,7 +543,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           anchors[a].target = nearest_area_point(area_of(q), system.positions[static_cast<std::size_t>(q)]);
       // Containment: an outside point gets a soft pin just inside, 4x stronger each round (with
       // sliding_contact a half-space under the tangent plane at its closest surface point).
-      const std::vector<double> spacing = lattice_local_spacing(system);
+      const std::vector<double> spacing = spacing_now();
+      const std::vector<double> weight_spacing = lattice_local_spacing(system);
       for (int q : outside) {
         const Vec3 target = contact_target(q, spacing);
         Vec3 normal = Vec3::Zero();
@@ -530,7 +555,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
         }
         const auto it = anchor_of.find(q);
         if (it == anchor_of.end()) {
-          const double h = spacing[static_cast<std::size_t>(q)];
+          const double h = weight_spacing[static_cast<std::size_t>(q)];
           anchor_of[q] = anchors.size();
           UntangleAnchor a{q, target, options.contact_weight / (h * h)};
           a.normal = normal;
@@ -571,7 +596,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
           }
       if (pass == 0) runs.back()["outside_at_finish"] = outside.size();
       if (outside.empty()) break;
-      const std::vector<double> spacing = lattice_local_spacing(system);
+      const std::vector<double> spacing = spacing_now();
       for (int q : outside) {
         system.positions[static_cast<std::size_t>(q)] =
             options.pin_search ? pin_target(q, spacing) : contact_target(q, spacing);

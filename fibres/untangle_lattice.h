@@ -27,7 +27,7 @@
 /// it are untangled again with it fixed (`pin_rounds`; undone when that does not fold fewer
 /// cells), so that no step after the untangling moves a lattice point and the pins do not fold
 /// cells behind the untangling's back. The attempt with the fewest folded cells after its pins
-/// stays.
+/// stays. Depths are in local spacings across the fibres (across_spacing).
 #include "fibres/untangle.h"
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
@@ -136,6 +136,17 @@ struct LatticeUntangleOptions {
   /// Points farther inside than this many local spacings are left out of the containment energy
   /// (they cannot reach the surface in one run), > 0 (default 3).
   double containment_band = 3.0;
+  /// The local spacing h that the depths (ring_depth, contact_depth, the pins' search,
+  /// containment_margin, containment_band) are measured in: the mean length of a point's springs
+  /// within its layer, across the fibres (lattice_across_spacing()) (true); or of all its springs,
+  /// the springs along the fibres included (lattice_local_spacing()) (false). The weights stay per
+  /// squared lattice_local_spacing(). Along a long, thin
+  /// muscle the springs along the fibres are many times longer than those across (LHDL psoas,
+  /// 15 points a fibre: about 23 mm against 1.7 mm), so a depth of 0.3 h over all springs put
+  /// points one and a half fibre spacings under the surface (default true: the corpus passes, 47
+  /// of 47, in less time, the LHDL psoas with its landmark files and the parallel template on its
+  /// first try; docs/BENCHMARKS.md, twenty-sixth session).
+  bool across_spacing = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;
 };
@@ -166,6 +177,11 @@ std::vector<int> outside_free_points(const springs::SpringSystem& system, const 
 
 /// Mean length of the springs at each point of `system` (its local lattice spacing).
 std::vector<double> lattice_local_spacing(const springs::SpringSystem& system);
+
+/// Mean length of the springs at each lattice point of `system` that join it to points of its own
+/// layer of `lattice` (the spacing across the fibres); a point without such springs, and every
+/// point after the lattice's (anchors), keeps lattice_local_spacing()'s value.
+std::vector<double> lattice_across_spacing(const springs::Lattice& lattice, const springs::SpringSystem& system);
 
 /// A point just inside the muscle for the lattice point q (usually outside): the closest surface
 /// point moved `depth` local spacings inwards (halved until it is inside); where the muscle is too

@@ -600,6 +600,45 @@ TEST_CASE("kuhn split: six positive tetrahedra around the diagonal that fill the
   CHECK(total == Approx(1.0));  // positive and summing to the cube: they tile it
 }
 
+TEST_CASE("lattice spacing: across the fibres only the springs within a layer count", "[fibres][untangle]") {
+  // A 4 x 4 x 3 template lattice stretched 10 times along t: springs across the fibres 1/3 long,
+  // along them 5; an anchor point after the lattice's keeps the mean over all its springs.
+  for (springs::SpringModel model : {springs::SpringModel::model6, springs::SpringModel::model26}) {
+    springs::LatticeOptions o;
+    o.nr = 4;
+    o.ns = 4;
+    o.resolution = 3;
+    o.model = model;
+    springs::Lattice lattice = springs::build_lattice(o);
+    springs::SpringSystem& system = lattice.system;
+    for (Vec3& p : system.positions) p.z() *= 10.0;
+    system.positions.push_back(system.positions[0] + Vec3(0.0, 0.0, -2.0));
+    system.fixed.push_back(1);
+    system.mass.push_back(1.0);
+    springs::Spring anchor;
+    anchor.a = 0;
+    anchor.b = static_cast<int>(system.positions.size()) - 1;
+    system.springs.push_back(anchor);
+    const std::vector<double> local = lattice_local_spacing(system);
+    const std::vector<double> across = lattice_across_spacing(lattice, system);
+    REQUIRE(across.size() == system.positions.size());
+    const int centre = lattice.index(1, 1, 1);
+    if (model == springs::SpringModel::model6) {
+      // Four springs of 1/3 across, two of 5 along.
+      CHECK(across[static_cast<std::size_t>(centre)] == Approx(1.0 / 3.0));
+      CHECK(local[static_cast<std::size_t>(centre)] == Approx((4.0 / 3.0 + 10.0) / 6.0));
+      // The corner (0, 0, 0): two across, one along, one anchor spring of 2 (left out across).
+      CHECK(across[0] == Approx(1.0 / 3.0));
+      CHECK(local[0] == Approx((2.0 / 3.0 + 5.0 + 2.0) / 4.0));
+    } else {
+      // Within the layer: four of 1/3 and four diagonals of sqrt(2)/3.
+      CHECK(across[static_cast<std::size_t>(centre)] == Approx((4.0 + 4.0 * std::sqrt(2.0)) / 3.0 / 8.0));
+    }
+    CHECK(across.back() == local.back());  // the anchor point
+    for (std::size_t q = 0; q + 1 < across.size(); ++q) CHECK(across[q] < local[q]);
+  }
+}
+
 TEST_CASE("lattice cell tetrahedra: the template lattice and its mirror image are unfolded, a swap folds it",
           "[fibres][untangle]") {
   springs::LatticeOptions o;
