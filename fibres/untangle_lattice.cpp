@@ -53,34 +53,38 @@ nlohmann::json LatticeUntangleReport::to_json() const {
           {"stops", stops},             {"iterations", iterations}, {"free_ring_tried", free_ring_tried}};
 }
 
-std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
+namespace {
+
+// Mean length of the springs at each point of `system` among those `counts` accepts; a point with
+// none of them gets otherwise[point] (0 when `otherwise` is null).
+template <class Counts>
+std::vector<double> mean_spring_length(const springs::SpringSystem& system, Counts counts,
+                                       const std::vector<double>* otherwise) {
   std::vector<double> sum(system.positions.size(), 0.0), count(system.positions.size(), 0.0);
   for (const springs::Spring& s : system.springs) {
+    if (!counts(s)) continue;
     const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
     sum[static_cast<std::size_t>(s.a)] += l;
     sum[static_cast<std::size_t>(s.b)] += l;
     count[static_cast<std::size_t>(s.a)] += 1.0;
     count[static_cast<std::size_t>(s.b)] += 1.0;
   }
-  for (std::size_t i = 0; i < sum.size(); ++i) sum[i] = count[i] > 0.0 ? sum[i] / count[i] : 0.0;
+  for (std::size_t i = 0; i < sum.size(); ++i)
+    sum[i] = count[i] > 0.0 ? sum[i] / count[i] : otherwise ? (*otherwise)[i] : 0.0;
   return sum;
 }
 
+}  // namespace
+
+std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
+  return mean_spring_length(system, [](const springs::Spring&) { return true; }, nullptr);
+}
+
 std::vector<double> lattice_across_spacing(const springs::Lattice& lattice, const springs::SpringSystem& system) {
-  std::vector<double> spacing = lattice_local_spacing(system);
+  const std::vector<double> local = lattice_local_spacing(system);
   const int plane = lattice.nx * lattice.ny, n = lattice.point_count();
-  std::vector<double> sum(spacing.size(), 0.0), count(spacing.size(), 0.0);
-  for (const springs::Spring& s : system.springs) {
-    if (s.a >= n || s.b >= n || s.a / plane != s.b / plane) continue;
-    const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
-    sum[static_cast<std::size_t>(s.a)] += l;
-    sum[static_cast<std::size_t>(s.b)] += l;
-    count[static_cast<std::size_t>(s.a)] += 1.0;
-    count[static_cast<std::size_t>(s.b)] += 1.0;
-  }
-  for (std::size_t i = 0; i < spacing.size(); ++i)
-    if (count[i] > 0.0) spacing[i] = sum[i] / count[i];
-  return spacing;
+  return mean_spring_length(
+      system, [&](const springs::Spring& s) { return s.a < n && s.b < n && s.a / plane == s.b / plane; }, &local);
 }
 
 Vec3 lattice_contact_point(const springs::SpringSystem& system, int lattice_points, const SurfaceQuery& query, int q,

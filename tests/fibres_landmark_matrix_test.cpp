@@ -43,6 +43,29 @@ LandmarkRun run_lhdl(const std::string& name, const std::string& mesh, springs::
   return run;
 }
 
+// A capsule along z (make_capsule lies along x; the cyclic permutation is a rotation), its
+// landmark areas at the two tips, and options with a check no decomposition can pass (coverage p95
+// at most 0.01 ideal spacings) on a small lattice: every retry then runs.
+struct ImpossibleCapsule {
+  TriangleMesh mesh;
+  Landmarks landmarks;
+  DecomposeOptions options;
+};
+
+ImpossibleCapsule impossible_capsule() {
+  ImpossibleCapsule c;
+  c.mesh = make_capsule(10.0, 1.5, 24);
+  for (Vec3& p : c.mesh.positions) p = Vec3(p.y(), p.z(), p.x());
+  c.options.fibres = 16;
+  c.options.resolution = 8;
+  c.options.check.max_coverage_p95 = 0.01;
+  c.landmarks.origin = {Vec3(0, 0, 6.5), Vec3(0.3, 0, 6.45), Vec3(0, 0.3, 6.45)};
+  c.landmarks.insertion = {Vec3(0, 0, -6.5), Vec3(0.3, 0, -6.45), Vec3(0, 0.3, -6.45)};
+  c.landmarks.origin_source = "origin";
+  c.landmarks.insertion_source = "insertion";
+  return c;
+}
+
 }  // namespace
 
 TEST_CASE("landmark twists: options are checked", "[fibres][decompose]") {
@@ -71,22 +94,13 @@ TEST_CASE("landmark twists: the command line takes degrees or 'none', and refuse
 }
 
 TEST_CASE("landmark twists: retried only with landmark areas, only while the check fails", "[fibres][decompose]") {
-  // A capsule along z (make_capsule lies along x; the cyclic permutation is a rotation) and a
-  // check no decomposition can pass (coverage p95 at most 0.01 ideal spacings).
-  TriangleMesh mesh = make_capsule(10.0, 1.5, 24);
-  for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
-  DecomposeOptions options;
-  options.fibres = 16;
-  options.resolution = 8;
-  options.check.max_coverage_p95 = 0.01;
+  ImpossibleCapsule capsule = impossible_capsule();
+  const TriangleMesh& mesh = capsule.mesh;
+  const Landmarks& landmarks = capsule.landmarks;
+  DecomposeOptions& options = capsule.options;
   options.landmark_twists_deg = {0.0, 30.0};
   options.retry_alternative = false;  // only the twists here (the alternative: fibres_decompose_test)
   options.landmark_narrow_retry = false;  // its own test below
-  Landmarks landmarks;
-  landmarks.origin = {Vec3(0, 0, 6.5), Vec3(0.3, 0, 6.45), Vec3(0, 0.3, 6.45)};
-  landmarks.insertion = {Vec3(0, 0, -6.5), Vec3(0.3, 0, -6.45), Vec3(0, 0.3, -6.45)};
-  landmarks.origin_source = "origin";
-  landmarks.insertion_source = "insertion";
 
   const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
   CHECK(automatic.report.status == "failed");
@@ -278,21 +292,14 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
 TEST_CASE("landmark narrow stage: the whole plan again with meridian rings and narrow edge cells only after every try failed",
           "[fibres][decompose]") {
   // The capsule and the check no decomposition can pass of the twists' test above.
-  TriangleMesh mesh = make_capsule(10.0, 1.5, 24);
-  for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
-  DecomposeOptions options;
-  options.fibres = 16;
-  options.resolution = 8;
-  options.check.max_coverage_p95 = 0.01;
+  ImpossibleCapsule capsule = impossible_capsule();
+  const TriangleMesh& mesh = capsule.mesh;
+  const Landmarks& landmarks = capsule.landmarks;
+  DecomposeOptions& options = capsule.options;
   options.landmark_twists_deg = {30.0};
   options.retry_alternative = false;
   options.strip.disk_fallback = false;
   REQUIRE(options.landmark_narrow_retry);  // the default
-  Landmarks landmarks;
-  landmarks.origin = {Vec3(0, 0, 6.5), Vec3(0.3, 0, 6.45), Vec3(0, 0.3, 6.45)};
-  landmarks.insertion = {Vec3(0, 0, -6.5), Vec3(0.3, 0, -6.45), Vec3(0, 0.3, -6.45)};
-  landmarks.origin_source = "origin";
-  landmarks.insertion_source = "insertion";
 
   const Decomposition given = decompose_repaired(mesh, landmarks, options);
   const nlohmann::json& attempts = given.report.attempts;
