@@ -248,8 +248,9 @@ void add_decompose_command(CLI::App& app) {
                   "runs again (the points still outside after them are fixed just inside)")
       ->capture_default_str();
   cmd->add_option("--untangle-across-spacing", o.untangle.across_spacing,
-                  "Untangling: measure depths under the surface and pin weights in the lattice spacing across the "
-                  "fibres (true) or in the mean length of all springs at a point, along the fibres too (false)")
+                  "Untangling: measure depths under the surface in the lattice spacing across the fibres (true) or "
+                  "in the mean length of all springs at a point, along the fibres too (false); pin weights use the "
+                  "latter either way")
       ->capture_default_str();
   cmd->add_option("--untangle-keep-best", o.untangle.solver.keep_best,
                   "Untangling: each run returns the best state it met when it ends worse")

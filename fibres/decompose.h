@@ -202,9 +202,11 @@ struct DecomposeOptions {
   /// (no fallback, no layer-ratio try) and keep the better result (default true; no effect when
   /// edge_cell is already below 1 or meridian rings are asked for). A result that passes before
   /// this stage is never changed by it. Why: with its landmark files the LHDL psoas, whose origin
-  /// strip runs down its side and whose tendon hooks, fails every earlier try; this stage passes
-  /// with the parallel template (coverage p95 1.992, 0 folded cells), not with curved, fanned or
-  /// rectus (docs/BENCHMARKS.md, "Decompose", twenty-fifth session).
+  /// strip runs down its side and whose tendon hooks, failed every earlier try with the parallel
+  /// template and this stage passed (coverage p95 1.992, 0 folded cells; docs/BENCHMARKS.md,
+  /// "Decompose", twenty-fifth session). Since the untangling's depths are measured across the
+  /// fibres (LatticeUntangleOptions::across_spacing) that pair passes on its first try, and no
+  /// LHDL pair needs this stage to pass (twenty-sixth session); it stays for meshes like it.
   bool landmark_narrow_retry = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;
