@@ -89,8 +89,14 @@ struct LatticeUntangleOptions {
   /// else at the one that folds the fewest (true), or always `contact_depth` deep (false)
   /// (default true).
   bool pin_search = true;
-  /// Containment rounds of an attempt (soft pins, untangle again), >= 0 (default 6).
-  int contact_rounds = 6;
+  /// Containment rounds of an attempt (soft pins, untangle again), 0..100 (default 16). Each
+  /// round takes in some of the points left outside; those still outside after the last are
+  /// pinned just inside, and many pins close together pinch the cells between them. With 6 the
+  /// LHDL psoas with its landmark files failed with the fanned and rectus templates (6 and 16
+  /// folded cells): every try ended with hundreds of points outside and still falling; with 16
+  /// both pass (0 folded, coverage p95 1.918 and 1.870), and the corpus stays at 47 of 47
+  /// (docs/BENCHMARKS.md, "Decompose", twenty-seventh session).
+  int contact_rounds = 16;
   /// An attempt's containment rounds stop after this many rounds in a row that did not leave
   /// fewer points outside than the best round of the attempt before them (the pins at the end take
   /// the points still outside), 0..100, 0 = never (default 0: 2 halved the untangling's iterations

@@ -677,6 +677,8 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
                                       // leave nothing outside to pin here: 2026-11-22)
   options.untangle.sliding_contact = false;  // the containment pins as when the case was found
                                              // (sliding, they bring every point in here)
+  options.untangle.contact_rounds = 6;       // the rounds as when the case was found (16, the
+                                             // default since 2026-11-29, bring every point in)
   const Decomposition d = decompose(soup, {}, options);
   const nlohmann::json u = d.report.to_json()["untangle"];
   INFO(u.dump());
