@@ -529,9 +529,12 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       if (stop.empty()) {
         // A round that left cells folded and did not fold fewer than the best round before is a
         // stall: the containment pins of further rounds only pull against the same fold (the
-        // attempts after this one start elsewhere).
+        // attempts after this one start elsewhere). With fold_stall_needs_outside_stall, only when
+        // it did not leave fewer points outside either: while the pins still bring points in, the
+        // rounds go on (the pins at the end would take those points and pinch the cells).
         const long now = inverted_count();
-        if (now > 0 && now >= best_round) stop = "fold_stalled";
+        if (now > 0 && now >= best_round && (!options.fold_stall_needs_outside_stall || outside_stalled > 0))
+          stop = "fold_stalled";
         best_round = std::min(best_round, now);
       }
       if (!stop.empty()) {
