@@ -205,8 +205,9 @@ struct DecomposeOptions {
   /// strip runs down its side and whose tendon hooks, failed every earlier try with the parallel
   /// template and this stage passed (coverage p95 1.992, 0 folded cells; docs/BENCHMARKS.md,
   /// "Decompose", twenty-fifth session). Since the untangling's depths are measured across the
-  /// fibres (LatticeUntangleOptions::across_spacing) that pair passes on its first try, and no
-  /// LHDL pair needs this stage to pass (twenty-sixth session); it stays for meshes like it.
+  /// fibres (LatticeUntangleOptions::across_spacing) that pair passes on its first try (twenty-sixth
+  /// session); the psoas with the curved, fanned and rectus templates passes only on this stage
+  /// (twenty-seventh session).
   bool landmark_narrow_retry = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;

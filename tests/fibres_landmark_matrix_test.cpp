@@ -243,7 +243,7 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
   // That was with the untangling's depths measured over all springs at a point; since 2026-11-29
   // they are measured across the fibres (LatticeUntangleOptions::across_spacing) and the first try
   // passes (the test below), so this one keeps the old measure to exercise the stage, and the old
-  // 6 containment rounds (with 16, the default since 2026-11-29, a twisted try passes earlier).
+  // 6 containment rounds (with 16, the default since 2026-11-29, a try before the stage passes).
   FASCICLE_REQUIRE_DATA();
   DecomposeOptions over_all_springs;
   over_all_springs.untangle.across_spacing = false;
@@ -300,8 +300,8 @@ TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus tem
   // stop only when the points outside stall too (fold_stall_needs_outside_stall), the defaults
   // now, the whole plan passes, on the narrow stage's try kept here: meridian rings, edge cells
   // of 0.5; the curved template with the strips and no twist, the fanned one with the landmark
-  // disks, the rectus one with the strips and the 67.5 degree twist. Each try alone, each way:
-  // about 100 s for the seven on 2 cores.
+  // disks, the rectus one with the strips and the 67.5 degree twist. The seven tries: 90 s on 2
+  // cores.
   FASCICLE_REQUIRE_DATA();
   struct Pair {
     springs::TemplateKind kind;
