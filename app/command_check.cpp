@@ -27,7 +27,7 @@ namespace {
 
 struct CheckArgs {
   std::string fibres, muscle, origin, insertion, report;
-  bool json = false, strict = false;
+  bool json = false, strict = false, summary = false;
   CheckOptions options;
   AttachmentOptions attachments;
   StripOptions strip;  ///< landmark areas joined into strips, as `fascicle decompose` does (default on)
@@ -95,6 +95,8 @@ void run_check(const CheckArgs& args) {
   if (args.json) {
     const std::string text = json.dump(2);
     std::printf("%s\n", text.c_str());
+  } else if (args.summary) {
+    std::printf("%s\n", report.summary().c_str());
   } else {
     std::printf("%s", report.to_table().c_str());
   }
@@ -110,7 +112,7 @@ void run_check(const CheckArgs& args) {
 
 void add_check_command(CLI::App& app) {
   auto args = std::make_shared<CheckArgs>();
-  CLI::App* cmd = app.add_subcommand("check", "Check fibres against their muscle: inside, crossing, coverage, attachment");
+  CLI::App* cmd = app.add_subcommand("check", "Check fibres against their muscle: inside, crossing, coverage, attachment, segments, smoothness, spread of the ends");
   cmd->add_option("fibres", args->fibres, "Fibres (vtk, vtp, obj, csv), each from origin to insertion")->required();
   cmd->add_option("muscle", args->muscle, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired when not closed genus 0")
       ->required();
@@ -119,12 +121,22 @@ void add_check_command(CLI::App& app) {
   cmd->add_flag("--json", args->json, "Print the JSON report to stdout instead of the table");
   cmd->add_option("--report", args->report, "Write the JSON report to this file");
   cmd->add_flag("--strict", args->strict, "Exit with code 19 when a criterion fails");
+  cmd->add_flag("--summary", args->summary, "Print the one-line verdict (each criterion, its value and threshold) instead of the table");
   cmd->add_option("--samples", args->options.coverage_samples, "Volume samples for the coverage figures")
       ->capture_default_str();
   cmd->add_option("--seed", args->options.seed, "Seed of the volume samples")->capture_default_str();
   cmd->add_option("--max-crossing-segments", args->options.max_crossing_segments,
-                  "Judge the fibre segments that leave the muscle between their points: at most this many "
+                  "Fibre segments that may leave the muscle between their points by more than --segment-tolerance "
                   "(-1: report them without judging)")
+      ->capture_default_str();
+  cmd->add_option("--segment-tolerance", args->options.segment_tolerance,
+                  "A segment leaves the muscle when it goes out by more than this fraction of the diagonal")
+      ->capture_default_str();
+  cmd->add_option("--max-turning-angle", args->options.max_turning_angle_deg,
+                  "Largest turning angle between consecutive segments, degrees")
+      ->capture_default_str();
+  cmd->add_option("--min-end-coverage", args->options.min_end_coverage,
+                  "Smallest share of each attachment area within one ideal end spacing of a fibre end")
       ->capture_default_str();
   cmd->add_option("--end-tolerance", args->options.end_tolerance,
                   "Fibre ends may lie this far outside the surface (fraction of the diagonal)")

@@ -371,6 +371,14 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   return s;
 }
 
+CheckOptions DecomposeOptions::default_check() {
+  CheckOptions c;
+  c.max_crossing_segments = -1;
+  c.max_turning_angle_deg = 180.0;
+  c.min_end_coverage = 0.0;
+  return c;
+}
+
 void DecomposeOptions::validate() const {
   repair.validate();
   sphere.validate();
@@ -800,7 +808,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       out.fibres = std::move(unmoved);
       report.quality = std::move(unmoved_quality);
       report.containment["segments"]["reverted"] = true;
-      report.containment["segments"]["crossing_after"] = report.quality.crossing_segments;
+      report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
     }
   }
   report.check_seconds = since(stage);

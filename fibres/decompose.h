@@ -144,7 +144,9 @@ struct DecomposeOptions {
   SegmentContainmentOptions segments;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
-  CheckOptions check;           ///< the final check (default thresholds: fibres/fibre_check.h)
+  /// The final check (default_check()): the criteria of fibres/fibre_check.h with the segments,
+  /// turning and ends figures reported but not judged.
+  CheckOptions check = default_check();
   /// Corner twists (degrees, each in [-180, 180]) tried in turn, each a whole decomposition with
   /// placement.corner_twist_deg replaced, when the attachment areas come from landmarks and the
   /// decomposition with placement.corner_twist_deg (and the alternative placement) fails the
@@ -212,6 +214,11 @@ struct DecomposeOptions {
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
+  /// CheckOptions with max_crossing_segments -1, max_turning_angle_deg 180 and min_end_coverage
+  /// 0: the decomposition is judged on inside, inverted cells, coverage and attachment; its
+  /// fibres do not yet meet the segments, smoothness and ends criteria on every muscle
+  /// (docs/decompose.md, "Where it stands"), which `fascicle check` judges.
+  static CheckOptions default_check();
 };
 
 /// Landmark files of the attachment areas (both or neither).

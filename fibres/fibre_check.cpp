@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <unordered_map>
 
 namespace fascicle {
 
@@ -226,6 +227,96 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int li
   report.inverted_cells = inverted;
 }
 
+/// Points bucketed in a uniform grid of cubes, for "is a point within r of p" queries.
+class PointGrid {
+ public:
+  PointGrid(const std::vector<Vec3>& points, double cell) : points_(points), cell_(cell > 0.0 ? cell : 1.0) {
+    for (std::size_t i = 0; i < points_.size(); ++i) buckets_[key(cell_of(points_[i]))].push_back(static_cast<int>(i));
+  }
+  bool any_within(const Vec3& p, double r) const {
+    const std::array<long, 3> c = cell_of(p);
+    const long reach = static_cast<long>(std::ceil(r / cell_));
+    const double r2 = r * r;
+    for (long dz = -reach; dz <= reach; ++dz)
+      for (long dy = -reach; dy <= reach; ++dy)
+        for (long dx = -reach; dx <= reach; ++dx) {
+          const auto it = buckets_.find(key({c[0] + dx, c[1] + dy, c[2] + dz}));
+          if (it == buckets_.end()) continue;
+          for (int i : it->second)
+            if ((points_[static_cast<std::size_t>(i)] - p).squaredNorm() <= r2) return true;
+        }
+    return false;
+  }
+
+ private:
+  std::array<long, 3> cell_of(const Vec3& p) const {
+    return {static_cast<long>(std::floor(p.x() / cell_)), static_cast<long>(std::floor(p.y() / cell_)),
+            static_cast<long>(std::floor(p.z() / cell_))};
+  }
+  static std::uint64_t key(const std::array<long, 3>& c) {
+    return (static_cast<std::uint64_t>(c[0] & 0x1fffff) << 42) | (static_cast<std::uint64_t>(c[1] & 0x1fffff) << 21) |
+           static_cast<std::uint64_t>(c[2] & 0x1fffff);
+  }
+  const std::vector<Vec3>& points_;
+  double cell_;
+  std::unordered_map<std::uint64_t, std::vector<int>> buckets_;
+};
+
+/// The ends criterion for one area: `samples` even samples of the muscle surface within `radius`
+/// of an area point (drawn from the triangles that can reach it, area-weighted, seeded), and the
+/// share of them within one ideal end spacing sqrt(area / F) of one of the F `ends`.
+EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area, const std::vector<Vec3>& ends,
+                         double radius, int samples, std::uint64_t seed) {
+  EndCoverage out;
+  if (area.points.empty() || ends.empty() || !(radius > 0.0)) return out;
+  std::vector<Vec3> area_points;
+  for (const SurfacePoint& p : area.points) area_points.push_back(p.position);
+  const PointGrid near_area(area_points, radius);
+  std::vector<int> candidates;
+  std::vector<double> cumulative;
+  std::vector<char> whole;
+  double total = 0.0;
+  for (std::size_t t = 0; t < muscle.triangles.size(); ++t) {
+    const Triangle& tri = muscle.triangles[t];
+    const Vec3& a = muscle.positions[static_cast<std::size_t>(tri[0])];
+    const Vec3& b = muscle.positions[static_cast<std::size_t>(tri[1])];
+    const Vec3& c = muscle.positions[static_cast<std::size_t>(tri[2])];
+    const Vec3 centre = (a + b + c) / 3.0;
+    const double reach = std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
+    if (!near_area.any_within(centre, radius + reach)) continue;
+    total += 0.5 * (b - a).cross(c - a).norm();
+    candidates.push_back(static_cast<int>(t));
+    cumulative.push_back(total);
+    // A triangle whose three corners are near area points is the area's as a whole (a coarse
+    // mesh's automatic band: its vertices are the area's points, its triangles large).
+    whole.push_back(near_area.any_within(a, radius) && near_area.any_within(b, radius) && near_area.any_within(c, radius));
+  }
+  if (candidates.empty() || !(total > 0.0)) return out;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Vec3> kept;
+  for (int i = 0; i < samples; ++i) {
+    const double pick = unit(rng) * total;
+    const std::size_t n = static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin());
+    const std::size_t pick_at = std::min(n, candidates.size() - 1);
+    const Triangle& tri = muscle.triangles[static_cast<std::size_t>(candidates[pick_at])];
+    const double u = std::sqrt(unit(rng)), v = unit(rng);
+    const Vec3 p = (1.0 - u) * muscle.positions[static_cast<std::size_t>(tri[0])] +
+                   u * (1.0 - v) * muscle.positions[static_cast<std::size_t>(tri[1])] +
+                   u * v * muscle.positions[static_cast<std::size_t>(tri[2])];
+    if (whole[pick_at] || near_area.any_within(p, radius)) kept.push_back(p);
+  }
+  out.samples = static_cast<int>(kept.size());
+  if (kept.empty()) return out;
+  out.area = total * static_cast<double>(kept.size()) / static_cast<double>(samples);
+  out.spacing = std::sqrt(out.area / static_cast<double>(ends.size()));
+  const PointGrid near_end(ends, out.spacing);
+  long covered = 0;
+  for (const Vec3& p : kept) covered += near_end.any_within(p, out.spacing) ? 1 : 0;
+  out.share = static_cast<double>(covered) / static_cast<double>(kept.size());
+  return out;
+}
+
 std::string fmt_double(double v) {
   char buffer[64];
   std::snprintf(buffer, sizeof(buffer), "%.4g", v);
@@ -250,7 +341,14 @@ void CheckOptions::validate() const {
     bad("max_coverage_p95", max_coverage_p95, "> 0 and finite");
   if (!(max_attachment > 0.0) || !std::isfinite(max_attachment)) bad("max_attachment", max_attachment, "> 0 and finite");
   if (max_crossing_segments < -1) bad("max_crossing_segments", static_cast<double>(max_crossing_segments), ">= -1");
+  if (!(segment_tolerance >= 0.0) || !std::isfinite(segment_tolerance))
+    bad("segment_tolerance", segment_tolerance, ">= 0 and finite");
   if (excursion_samples < 1 || excursion_samples > 10000) bad("excursion_samples", excursion_samples, "in [1, 10000]");
+  if (!(max_turning_angle_deg > 0.0 && max_turning_angle_deg <= 180.0))
+    bad("max_turning_angle_deg", max_turning_angle_deg, "in (0, 180]");
+  if (!(end_region_radius > 0.0 && end_region_radius <= 1.0)) bad("end_region_radius", end_region_radius, "in (0, 1]");
+  if (end_samples < 1 || end_samples > 10'000'000) bad("end_samples", end_samples, "in [1, 10000000]");
+  if (!(min_end_coverage >= 0.0 && min_end_coverage <= 1.0)) bad("min_end_coverage", min_end_coverage, "in [0, 1]");
   if (outside_listed < 0) bad("outside_listed", outside_listed, ">= 0");
 }
 
@@ -422,37 +520,42 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   report.inside_fraction = static_cast<double>(report.inside_points) / static_cast<double>(report.points);
 
   // ---- segments ----
-  // A segment crosses the surface when one of its points failed the inside test, or when a ray
+  // A segment touches the surface when one of its points failed the inside test, or when a ray
   // from its midpoint towards either end hits the surface before that end (minus the end
-  // tolerance where the end is a fibre end, which lies on the surface by design).
+  // tolerance where the end is a fibre end, which lies on the surface by design); a touching
+  // segment crosses when its sampled excursion is beyond the tolerance.
+  const double segment_tolerance = options.segment_tolerance * diagonal;
   {
-    std::vector<std::vector<CrossingSegment>> crossing(fibres.lines.size());
+    std::vector<std::vector<CrossingSegment>> touching(fibres.lines.size());
     tbb::parallel_for(std::size_t(0), fibres.lines.size(), [&](std::size_t f) {
       const auto& line = fibres.lines[f];
       const std::size_t last = line.size() - 1;
       for (std::size_t k = 0; k < last; ++k) {
         const Vec3& a = line[k];
         const Vec3& b = line[k + 1];
-        const bool crosses = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
+        const bool touches = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
                              fibre_segment_leaves(query, a, b, static_cast<int>(k), static_cast<int>(last), end_tolerance);
-        if (!crosses) continue;
+        if (!touches) continue;
         CrossingSegment c;
         c.fibre = static_cast<int>(f);
         c.segment = static_cast<int>(k);
         c.excursion = segment_excursion(query, a, b, options.excursion_samples);
-        crossing[f].push_back(c);
+        touching[f].push_back(c);
       }
     });
     report.segments = static_cast<long>(total_points - fibres.lines.size());
-    for (const auto& list : crossing)
+    for (const auto& list : touching)
       for (const CrossingSegment& c : list) {
-        ++report.crossing_segments;
+        ++report.touching_segments;
         report.max_segment_excursion = std::max(report.max_segment_excursion, c.excursion);
+        if (!(c.excursion > segment_tolerance)) continue;
+        ++report.crossing_segments;
         if (static_cast<int>(report.crossing_examples.size()) < options.outside_listed)
           report.crossing_examples.push_back(c);
       }
     report.segment_inside_fraction =
         report.segments > 0 ? 1.0 - static_cast<double>(report.crossing_segments) / static_cast<double>(report.segments) : 1.0;
+    report.max_segment_excursion_diagonal = diagonal > 0.0 ? report.max_segment_excursion / diagonal : 0.0;
   }
 
   // ---- lattice cells ----
@@ -464,22 +567,40 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
 
   // ---- lengths and turning angles ----
   std::vector<double> lengths(fibres.lines.size());
-  double max_angle = 0.0;
+  TurningFigures& turning = report.turning;
   for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
     const auto& line = fibres.lines[f];
     lengths[f] = polyline_length(line);
     Vec3 previous = Vec3::Zero();
+    int first_joint = -1, last_joint = -1;
+    std::vector<std::pair<int, double>> joints;  // (point index, angle) of this fibre
     for (std::size_t k = 0; k + 1 < line.size(); ++k) {
       const Vec3 d = line[k + 1] - line[k];
       if (d.norm() == 0.0) continue;  // repeated points have no direction
       if (previous.norm() > 0.0) {
         const double c = std::clamp(previous.normalized().dot(d.normalized()), -1.0, 1.0);
-        max_angle = std::max(max_angle, std::acos(c) * 180.0 / kPi);
+        const double angle = std::acos(c) * 180.0 / kPi;
+        joints.emplace_back(static_cast<int>(k), angle);
+        if (first_joint < 0) first_joint = static_cast<int>(k);
+        last_joint = static_cast<int>(k);
       }
       previous = d;
     }
+    for (const auto& [joint, angle] : joints) {
+      ++turning.joints;
+      turning.over_30 += angle > 30.0 ? 1 : 0;
+      if (angle > 45.0) {
+        ++turning.over_45;
+        turning.end_joints_over_45 += joint == first_joint || joint == last_joint ? 1 : 0;
+      }
+      if (angle > turning.max_deg) {
+        turning.max_deg = angle;
+        turning.fibre = static_cast<int>(f);
+        turning.joint = joint;
+      }
+    }
   }
-  report.max_turning_angle_deg = max_angle;
+  report.max_turning_angle_deg = turning.max_deg;
   report.steps = step_figures(fibres);
   double sum = 0.0, sum2 = 0.0;
   report.length.min = std::numeric_limits<double>::infinity();
@@ -570,6 +691,18 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     }
   }
 
+  // ---- ends spread over their areas ----
+  {
+    std::vector<Vec3> first, last;
+    for (const auto& line : fibres.lines) {
+      first.push_back(line.front());
+      last.push_back(line.back());
+    }
+    const double radius = options.end_region_radius * length;
+    report.origin_ends = end_coverage(muscle, areas.origin, first, radius, options.end_samples, options.seed);
+    report.insertion_ends = end_coverage(muscle, areas.insertion, last, radius, options.end_samples, options.seed + 1);
+  }
+
   // ---- verdict ----
   if (report.inside_fraction < options.min_inside_fraction) report.failed.push_back("inside");
   if (report.inverted_cells > options.max_inverted_cells) report.failed.push_back("inverted_cells");
@@ -578,6 +711,9 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     report.failed.push_back("attachment");
   if (options.max_crossing_segments >= 0 && report.crossing_segments > options.max_crossing_segments)
     report.failed.push_back("segments");
+  if (!(report.turning.max_deg <= options.max_turning_angle_deg)) report.failed.push_back("smooth");
+  if (!(std::min(report.origin_ends.share, report.insertion_ends.share) >= options.min_end_coverage))
+    report.failed.push_back("ends");
   report.pass = report.failed.empty();
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
@@ -604,7 +740,9 @@ nlohmann::json CheckReport::to_json() const {
       {"outside_examples", outside_list},
       {"segments", segments},
       {"crossing_segments", crossing_segments},
+      {"touching_segments", touching_segments},
       {"segment_inside_fraction", segment_inside_fraction},
+      {"max_segment_excursion_diagonal", max_segment_excursion_diagonal},
       {"max_segment_excursion", max_segment_excursion},
       {"max_segment_excursion_relative", max_segment_excursion_relative},
       {"crossing_examples", crossing_list},
@@ -647,12 +785,36 @@ nlohmann::json CheckReport::to_json() const {
         {"layers", steps.layers},
         {"layer_ratio", steps.layer_ratio}}},
       {"max_turning_angle_deg", max_turning_angle_deg},
+      {"turning",
+       {{"max_deg", turning.max_deg},
+        {"fibre", turning.fibre},
+        {"joint", turning.joint},
+        {"joints", turning.joints},
+        {"over_30", turning.over_30},
+        {"over_45", turning.over_45},
+        {"end_joints_over_45", turning.end_joints_over_45}}},
+      {"ends",
+       {{"origin",
+         {{"share", origin_ends.share},
+          {"spacing", origin_ends.spacing},
+          {"area", origin_ends.area},
+          {"samples", origin_ends.samples}}},
+        {"insertion",
+         {{"share", insertion_ends.share},
+          {"spacing", insertion_ends.spacing},
+          {"area", insertion_ends.area},
+          {"samples", insertion_ends.samples}}}}},
       {"thresholds",
        {{"min_inside_fraction", thresholds.min_inside_fraction},
         {"max_inverted_cells", thresholds.max_inverted_cells},
         {"max_coverage_p95", thresholds.max_coverage_p95},
         {"max_attachment", thresholds.max_attachment},
         {"max_crossing_segments", thresholds.max_crossing_segments},
+        {"segment_tolerance", thresholds.segment_tolerance},
+        {"max_turning_angle_deg", thresholds.max_turning_angle_deg},
+        {"end_region_radius", thresholds.end_region_radius},
+        {"end_samples", thresholds.end_samples},
+        {"min_end_coverage", thresholds.min_end_coverage},
         {"excursion_samples", thresholds.excursion_samples},
         {"end_tolerance", thresholds.end_tolerance},
         {"coverage_samples", thresholds.coverage_samples},
@@ -690,11 +852,26 @@ std::string CheckReport::to_table() const {
   const bool judged = thresholds.max_crossing_segments >= 0;
   std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "crossing_segs",
                 (std::to_string(crossing_segments) + " of " + std::to_string(segments) + ", out " +
-                 fmt_double(max_segment_excursion))
+                 fmt_double(100.0 * max_segment_excursion_diagonal) + " %")
                     .c_str(),
                 judged ? ("<= " + std::to_string(thresholds.max_crossing_segments)).c_str() : "(reported)",
                 judged ? verdict("segments") : "-");
   out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "turning_max",
+                (fmt_double(turning.max_deg) + " deg (" + std::to_string(turning.over_45) + " > 45)").c_str(),
+                ("<= " + fmt_double(thresholds.max_turning_angle_deg)).c_str(), verdict("smooth"));
+  out += line;
+  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "end_coverage",
+                (fmt_double(origin_ends.share) + " / " + fmt_double(insertion_ends.share)).c_str(),
+                (">= " + fmt_double(thresholds.min_end_coverage)).c_str(), verdict("ends"));
+  out += line;
+  out += "segments the surface cuts at all: " + std::to_string(touching_segments) + " (the tolerance is " +
+         fmt_double(100.0 * thresholds.segment_tolerance) + " % of the diagonal)\n";
+  if (turning.fibre >= 0)
+    out += "largest turn at fibre " + std::to_string(turning.fibre) + ", point " + std::to_string(turning.joint) +
+           "; joints over 30 deg: " + std::to_string(turning.over_30) + ", over 45 deg: " + std::to_string(turning.over_45) +
+           " (" + std::to_string(turning.end_joints_over_45) + " at a fibre's first or last joint) of " +
+           std::to_string(turning.joints) + "\n";
   out += "fibres " + std::to_string(fibres) + ", points " + std::to_string(points) + ", ideal spacing " +
          fmt_double(coverage.ideal_spacing) + " (" + std::to_string(coverage.samples) + " samples)\n";
   if (coverage.samples > 0) {
@@ -738,6 +915,30 @@ std::string CheckReport::to_table() const {
   std::string result = pass ? "pass" : "FAIL:";
   for (const auto& f : failed) result += " " + f;
   out += "result: " + result + " (" + fmt_double(seconds) + " s)\n";
+  return out;
+}
+
+std::string CheckReport::summary() const {
+  const auto verdict = [this](const char* name) {
+    return std::find(failed.begin(), failed.end(), name) == failed.end() ? "" : " FAIL";
+  };
+  std::string out = pass ? "pass:" : "FAIL:";
+  out += " inside " + fmt_double(inside_fraction) + " (>= " + fmt_double(thresholds.min_inside_fraction) + ")" +
+         verdict("inside");
+  if (lattice)
+    out += ", inverted cells " + std::to_string(inverted_cells) + " (<= " + std::to_string(thresholds.max_inverted_cells) +
+           ")" + verdict("inverted_cells");
+  out += ", coverage p95 " + fmt_double(coverage.p95) + " (<= " + fmt_double(thresholds.max_coverage_p95) + ")" +
+         verdict("coverage");
+  out += ", attachment " + fmt_double(std::max(attachment.origin_max, attachment.insertion_max)) + " (<= " +
+         fmt_double(thresholds.max_attachment) + ")" + verdict("attachment");
+  out += ", segments out " + std::to_string(crossing_segments) + " (<= " +
+         (thresholds.max_crossing_segments >= 0 ? std::to_string(thresholds.max_crossing_segments) : std::string("any")) +
+         " beyond " + fmt_double(100.0 * thresholds.segment_tolerance) + " %)" + verdict("segments");
+  out += ", turning " + fmt_double(turning.max_deg) + " deg (<= " + fmt_double(thresholds.max_turning_angle_deg) + ")" +
+         verdict("smooth");
+  out += ", ends " + fmt_double(origin_ends.share) + " / " + fmt_double(insertion_ends.share) + " (>= " +
+         fmt_double(thresholds.min_end_coverage) + ")" + verdict("ends");
   return out;
 }
 

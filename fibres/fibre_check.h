@@ -5,11 +5,11 @@
 /// fibres from any tool (this program's decomposition, a slicing method, a harmonic-field
 /// method) are checked the same way.
 ///
-/// Criteria and their default thresholds (CheckOptions):
+/// Criteria and their default thresholds (CheckOptions), each judged, each named in `failed`:
 /// - inside: every interior fibre point strictly inside the muscle by the exact test (CGAL
 ///   Side_of_triangle_mesh through morph/surface_query.h); end points may also lie on the surface
 ///   within `end_tolerance`. Pass when inside_fraction >= min_inside_fraction (1.0).
-/// - inverted cells (lattice fibres only, see fibres/fibre_grid.h): each hexahedral cell between
+/// - inverted_cells (lattice fibres only, see fibres/fibre_grid.h): each hexahedral cell between
 ///   fibres (r,s), (r+1,s), (r,s+1), (r+1,s+1) and points k, k+1 is split into six tetrahedra
 ///   around its diagonal (r,s,k)-(r+1,s+1,k+1); a cell is inverted when one of its tetrahedra has
 ///   the sign opposite to the lattice's reference orientation (the sign of the sum of all
@@ -22,15 +22,25 @@
 ///   its last point to the nearest insertion-area point, divided by the muscle length (extent of
 ///   the muscle's vertices along their principal axis, as morph/attachments.cpp defines the
 ///   automatic areas). Pass when the largest of both is <= max_attachment (0.02).
-/// - segments: a fibre is a polyline, so the check also asks whether each segment between two
-///   consecutive points stays inside: a segment "crosses" when the surface cuts it (a ray test
-///   from its midpoint towards both ends, Moeller-Trumbore through the query's hierarchy; hits
-///   within `end_tolerance` of a fibre end point do not count, as that point lies on the surface)
-///   or when one of its points failed the inside test. How far a crossing segment goes out is
-///   sampled (max_segment_excursion). Reported always; judged only when max_crossing_segments
-///   >= 0 (default -1: not judged, as the inside criterion above is the point test).
-/// Length spread, the point spacing along the fibres (StepFigures) and the largest turning angle
-/// are reported, not judged.
+/// - segments (polylines inside): a fibre is a polyline, and a modeller draws its segments. A
+///   segment "touches" the surface when the surface cuts it (a ray test from its midpoint towards
+///   both ends, Moeller-Trumbore through the query's hierarchy; hits within `end_tolerance` of a
+///   fibre end do not count, as that point lies on the surface) or when one of its points failed
+///   the inside test; each touching segment is sampled at `excursion_samples` points between its
+///   ends with the exact inside test, and the largest distance to the surface of the samples
+///   outside is its excursion. It "crosses" when the excursion exceeds segment_tolerance of the
+///   bounding-box diagonal (0.5 %). Pass when crossing_segments <= max_crossing_segments (0).
+/// - smooth: the turning angle at each joint (the angle between consecutive segments); pass when
+///   the largest is <= max_turning_angle_deg (45). Reported with where it is and the joints over
+///   30 and over 45 degrees (TurningFigures).
+/// - ends: the fibre ends must spread over their areas, not gather into a point. Each area's
+///   surface (the surface within end_region_radius of the muscle length of an area point, and
+///   every triangle whose three corners are) is sampled evenly; the ideal end spacing is
+///   sqrt(area / F); the area's share is the fraction of its samples within one ideal end
+///   spacing of a fibre end there. Pass when both shares are >= min_end_coverage (0.25): a grid
+///   of F ends over the area covers all of it, ends over its middle half (by radius) about a
+///   quarter plus a rim, ends gathered into a point about pi / F.
+/// Length spread and the point spacing along the fibres (StepFigures) are reported, not judged.
 
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
@@ -64,11 +74,26 @@ struct CheckOptions {
   /// Pass threshold: largest acceptable attachment distance, as a fraction of the muscle length
   /// (default 0.02).
   double max_attachment = 0.02;
-  /// Pass threshold: largest acceptable number of crossing segments (segments that leave the
-  /// muscle between their points); -1 (default) reports them without judging.
-  long max_crossing_segments = -1;
-  /// Points sampled along each crossing segment to measure how far it goes out (default 32).
+  /// A segment crosses the surface when a sample of it lies outside by more than this fraction
+  /// of the muscle's bounding-box diagonal (default 0.005).
+  double segment_tolerance = 0.005;
+  /// Pass threshold: largest acceptable number of crossing segments (default 0); -1 reports them
+  /// without judging.
+  long max_crossing_segments = 0;
+  /// Points sampled between the ends of each segment the surface cuts, for the exact inside
+  /// test that measures how far it goes out, in [1, 10000] (default 32).
   int excursion_samples = 32;
+  /// Pass threshold: largest acceptable turning angle between consecutive segments, degrees, in
+  /// (0, 180] (default 45).
+  double max_turning_angle_deg = 45.0;
+  /// The surface of an attachment area for the ends criterion: within this fraction of the muscle
+  /// length of an area point, (0, 1] (default 0.01).
+  double end_region_radius = 0.01;
+  /// Even samples on each attachment area's surface for the ends criterion (default 4000).
+  int end_samples = 4000;
+  /// Pass threshold: smallest acceptable share of each area within one ideal end spacing of a
+  /// fibre end, [0, 1] (default 0.25).
+  double min_end_coverage = 0.25;
   /// How many outside points (and inverted cells, crossing segments) the report lists (default
   /// 10); the counts cover all of them.
   int outside_listed = 10;
@@ -76,7 +101,9 @@ struct CheckOptions {
   /// Throws OptionError naming the first field out of range (coverage_samples not in [1, 1e8],
   /// end_tolerance < 0, min_inside_fraction outside [0, 1], max_inverted_cells < 0,
   /// max_coverage_p95 or max_attachment <= 0 or not finite, max_crossing_segments < -1,
-  /// excursion_samples not in [1, 10000], outside_listed < 0).
+  /// segment_tolerance < 0, excursion_samples not in [1, 10000],
+  /// max_turning_angle_deg not in (0, 180], end_region_radius not in (0, 1], end_samples not in
+  /// [1, 10000000], min_end_coverage not in [0, 1], outside_listed < 0).
   void validate() const;
 };
 
@@ -158,8 +185,26 @@ struct StepFigures {
   double layer_ratio = 0.0;
 };
 
+/// Turning angles between consecutive segments (degrees).
+struct TurningFigures {
+  double max_deg = 0.0;   ///< largest turning angle
+  int fibre = -1;         ///< where: line index, -1 when no fibre has a joint
+  int joint = -1;         ///< the joint's point index along the fibre (1 .. points - 2)
+  long joints = 0;        ///< joints measured (interior points whose both segments have a length)
+  long over_30 = 0, over_45 = 0;  ///< joints turning by more than 30 and 45 degrees
+  long end_joints_over_45 = 0;    ///< of those over 45, the first or last joint of a fibre
+};
+
+/// How the fibre ends cover one attachment area (the ends criterion).
+struct EndCoverage {
+  double share = 0.0;     ///< fraction of the area's samples within one ideal spacing of an end
+  double spacing = 0.0;   ///< ideal end spacing sqrt(area / F), mesh units
+  double area = 0.0;      ///< the area's surface, mesh units squared (estimated from the samples)
+  int samples = 0;        ///< samples drawn on it
+};
+
 /// Result of check_fibres. `pass` is true when no criterion failed; `failed` names the failed
-/// ones ("inside", "inverted_cells", "coverage", "attachment", "segments").
+/// ones ("inside", "inverted_cells", "coverage", "attachment", "segments", "smooth", "ends").
 struct CheckReport {
   long fibres = 0;                        ///< fibre count F
   long points = 0;                        ///< fibre points in all
@@ -168,11 +213,13 @@ struct CheckReport {
   long outside = 0;                       ///< points - inside_points
   std::vector<OutsidePoint> outside_examples;  ///< the first options.outside_listed of them
   long segments = 0;                      ///< segments in all (points - fibres)
-  long crossing_segments = 0;             ///< segments that leave the muscle (see the file comment)
+  long crossing_segments = 0;             ///< segments out by more than the tolerance (judged)
+  long touching_segments = 0;             ///< segments the surface cuts at all (reported)
   double segment_inside_fraction = 0.0;   ///< 1 - crossing_segments / segments
-  /// Largest excursion of a crossing segment outside the surface (mesh units, sampled) and the
-  /// same as a fraction of the muscle length (attachment.muscle_length).
-  double max_segment_excursion = 0.0, max_segment_excursion_relative = 0.0;
+  /// Largest excursion of a segment outside the surface (mesh units, sampled), the same as a
+  /// fraction of the muscle length (attachment.muscle_length) and of the bounding-box diagonal
+  /// (the criterion's measure).
+  double max_segment_excursion = 0.0, max_segment_excursion_relative = 0.0, max_segment_excursion_diagonal = 0.0;
   std::vector<CrossingSegment> crossing_examples;  ///< the first options.outside_listed of them
   bool lattice = false;                   ///< the fibres carry a lattice (fibre_r, fibre_s)
   int lattice_nr = 0, lattice_ns = 0;     ///< lattice index ranges (0 when not a lattice)
@@ -186,6 +233,8 @@ struct CheckReport {
   LengthFigures length;
   StepFigures steps;                      ///< point spacing along the fibres (reported, not judged)
   double max_turning_angle_deg = 0.0;     ///< largest angle between consecutive segments
+  TurningFigures turning;                 ///< the turning angles in detail (smooth criterion)
+  EndCoverage origin_ends, insertion_ends;  ///< the ends criterion, per area
   CheckOptions thresholds;                ///< the options the check ran with
   bool pass = false;
   std::vector<std::string> failed;        ///< names of the failed criteria, in the order above
@@ -195,6 +244,8 @@ struct CheckReport {
   nlohmann::json to_json() const;
   /// A human-readable table, one criterion per line with its value, threshold and verdict.
   std::string to_table() const;
+  /// One line: pass or FAIL, then each criterion with its value, threshold and verdict.
+  std::string summary() const;
 };
 
 /// The point spacing figures of `fibres` (StepFigures; fibres with fewer than 2 points are

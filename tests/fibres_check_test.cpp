@@ -144,16 +144,26 @@ TEST_CASE("a segment between two inside points that cuts a bend leaves the muscl
   CHECK(report.max_segment_excursion == Approx((R - r) - chord_middle).margin(0.02));
   CHECK(report.max_segment_excursion_relative ==
         Approx(report.max_segment_excursion / report.attachment.muscle_length).epsilon(1e-12));
-  CHECK_FALSE(has_failed(report, "segments"));  // reported, not judged by default
-
-  CheckOptions judged;
-  judged.max_crossing_segments = 1;
-  report = check_fibres(fibres, tube, areas, judged);
-  CHECK(has_failed(report, "segments"));
+  CHECK(report.touching_segments == 2);
+  CHECK(report.max_segment_excursion_diagonal ==
+        Approx(report.max_segment_excursion / bounding_box(tube.positions).diagonal()).epsilon(1e-12));
+  CHECK(has_failed(report, "segments"));  // judged by default: none may leave
   CHECK(report.to_table().find("crossing_segs") != std::string::npos);
   CHECK(report.to_table().find("crossing: fibre 1 between points 0 and 1") != std::string::npos);
+  CHECK(report.summary().find("segments out 2 (<= 0 beyond 0.5 %) FAIL") != std::string::npos);
+
+  CheckOptions judged;
   judged.max_crossing_segments = 2;
   CHECK_FALSE(has_failed(check_fibres(fibres, tube, areas, judged), "segments"));
+  judged.max_crossing_segments = -1;  // reported, not judged
+  CHECK_FALSE(has_failed(check_fibres(fibres, tube, areas, judged), "segments"));
+  // A tolerance beyond the excursion: the chords touch the surface but do not cross.
+  judged.max_crossing_segments = 0;
+  judged.segment_tolerance = 1.01 * report.max_segment_excursion_diagonal;
+  const CheckReport tolerant = check_fibres(fibres, tube, areas, judged);
+  CHECK(tolerant.touching_segments == 2);
+  CHECK(tolerant.crossing_segments == 0);
+  CHECK_FALSE(has_failed(tolerant, "segments"));
 
   // A point outside makes both its segments cross.
   Polylines dense;
@@ -382,6 +392,62 @@ TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
   CHECK(report.max_turning_angle_deg == Approx(90.0).epsilon(1e-12));
 }
 
+TEST_CASE("the smooth criterion: the largest turn, where it is, and the joints over 30 and 45 degrees", "[fibres][check]") {
+  const TriangleMesh box = long_box(3);
+  Polylines fibres = straight_lattice(3, 11);
+  const Attachments areas = areas_for(box, fibres);
+  CHECK(check_fibres(fibres, box, areas).turning.joints == 9 * 9);
+  // Fibre 4, point 5 moved sideways by half a step: joints 4 and 6 turn by atan(1/2) = 26.57
+  // degrees, joint 5 by twice that.
+  auto& line = fibres.lines[4];
+  const double step = (line[1] - line[0]).norm();
+  line[5].y() += 0.5 * step;
+  CheckReport report = check_fibres(fibres, box, areas);
+  CHECK(report.turning.max_deg == Approx(2.0 * std::atan(0.5) * 180.0 / kPi).epsilon(1e-9));
+  CHECK(report.turning.fibre == 4);
+  CHECK(report.turning.joint == 5);
+  CHECK(report.turning.over_30 == 1);
+  CHECK(report.turning.over_45 == 1);
+  CHECK(report.turning.end_joints_over_45 == 0);
+  CHECK(has_failed(report, "smooth"));
+  CheckOptions loose;
+  loose.max_turning_angle_deg = 60.0;
+  CHECK_FALSE(has_failed(check_fibres(fibres, box, areas, loose), "smooth"));
+  // A hook at the end: the second point off to the side turns the first joint.
+  Polylines hooked = straight_lattice(3, 11);
+  const Attachments hooked_areas = areas_for(box, hooked);
+  hooked.lines[0][1].z() += 2.0 * step;
+  report = check_fibres(hooked, box, hooked_areas);
+  CHECK(report.turning.fibre == 0);
+  CHECK(report.turning.joint == 1);
+  CHECK(report.turning.end_joints_over_45 >= 1);
+}
+
+TEST_CASE("the ends criterion: ends spread over their areas pass, ends gathered into a point fail", "[fibres][check]") {
+  const TriangleMesh box = long_box(6);
+  Polylines spread = straight_lattice(6, 11);
+  const Attachments areas = areas_for(box, spread);
+  const CheckReport good = check_fibres(spread, box, areas);
+  CHECK(good.origin_ends.share > 0.9);
+  CHECK(good.insertion_ends.share > 0.9);
+  CHECK(good.origin_ends.samples > 2500);
+  // The area is the end band: the end face (10 x 10) and a tenth of the length of the sides.
+  CHECK(good.origin_ends.area == Approx(100.0 + 4 * 10.0 * 2.0).epsilon(0.1));
+  CHECK(good.origin_ends.spacing == Approx(std::sqrt(good.origin_ends.area / 36.0)).epsilon(1e-12));
+  CHECK_FALSE(has_failed(good, "ends"));
+  // Every fibre's insertion end moved to the centre of the end face.
+  Polylines gathered = spread;
+  for (auto& line : gathered.lines) line.back() = Vec3(line.back().x(), 0.0, 0.0);
+  const CheckReport bad = check_fibres(gathered, box, areas);
+  // A disk of one ideal spacing round the centre: pi / F of the area.
+  CHECK(bad.insertion_ends.share == Approx(kPi / 36.0).epsilon(0.2));
+  CHECK(bad.origin_ends.share == Approx(good.origin_ends.share).epsilon(1e-12));
+  CHECK(has_failed(bad, "ends"));
+  CheckOptions loose;
+  loose.min_end_coverage = 0.05;
+  CHECK_FALSE(has_failed(check_fibres(gathered, box, areas, loose), "ends"));
+}
+
 TEST_CASE("point spacing along the fibres: per fibre and per layer", "[fibres][check]") {
   // Three fibres of five points along x: steps 2, 2, 2, 6 (the last layer three times the
   // others), 3, 3, 3, 3 (even) and 1, 1, 1, 9.
@@ -515,9 +581,19 @@ TEST_CASE("fascicle check prints a table or JSON and writes the report and exits
   CHECK(printed.at("pass").get<bool>());
   CHECK(printed.at("crossing_segments").get<long>() == 0);
   CHECK(printed.at("segments").get<long>() == 9 * 8);
-  CHECK(printed.at("thresholds").at("max_crossing_segments").get<long>() == -1);
-  REQUIRE(run("check " + fibres + " " + mesh + " --json --strict --max-crossing-segments 0", out) == 0);
-  CHECK(nlohmann::json::parse(read_text(out)).at("thresholds").at("max_crossing_segments").get<long>() == 0);
+  CHECK(printed.at("thresholds").at("max_crossing_segments").get<long>() == 0);
+  CHECK(printed.at("turning").at("max_deg").get<double>() == Approx(0.0).margin(1e-9));
+  CHECK(printed.at("ends").at("origin").at("share").get<double>() > 0.9);
+  REQUIRE(run("check " + fibres + " " + mesh + " --json --strict --max-crossing-segments -1 --max-turning-angle 10 "
+              "--min-end-coverage 0.5 --segment-tolerance 0.01",
+              out) == 0);
+  const nlohmann::json loose = nlohmann::json::parse(read_text(out)).at("thresholds");
+  CHECK(loose.at("max_crossing_segments").get<long>() == -1);
+  CHECK(loose.at("max_turning_angle_deg").get<double>() == 10.0);
+  CHECK(loose.at("min_end_coverage").get<double>() == 0.5);
+  CHECK(loose.at("segment_tolerance").get<double>() == 0.01);
+  REQUIRE(run("check " + fibres + " " + mesh + " --summary", out) == 0);
+  CHECK(read_text(out).rfind("pass: inside 1 (>= 1), inverted cells 0 (<= 0), coverage p95 ", 0) == 0);
 
   // Landmark files replace the automatic areas.
   const double origin_x = good.lines[0].front().x();

@@ -77,7 +77,7 @@ TEST_CASE("segments cutting the inner wall of a bend are moved back inside witho
   CHECK(before.inside_fraction == 1.0);
   CHECK(before.inverted_cells == 0);
   // The 4 innermost fibres (i = 1), 3 segments each.
-  CHECK(before.crossing_segments == 12);
+  CHECK(before.touching_segments == 12);
   for (const CrossingSegment& c : before.crossing_examples) CHECK(c.fibre % 4 == 0);
 
   const std::vector<Vec3> start = lattice.system.positions;
@@ -87,7 +87,7 @@ TEST_CASE("segments cutting the inner wall of a bend are moved back inside witho
   CHECK(report.crossing_after == 0);
   CHECK(report.moved >= 4);
   const CheckReport after = check(lattice, tube);
-  CHECK(after.crossing_segments == 0);
+  CHECK(after.touching_segments == 0);
   CHECK(after.inside_fraction == 1.0);
   CHECK(after.inverted_cells == 0);
   // Only free points moved (of the innermost lines, and of lines round them where a patch
@@ -129,7 +129,7 @@ TEST_CASE("a segment move that would fold cells is undone", "[fibres][contain]")
   const CheckReport before = check(lattice, tube);
   REQUIRE(before.inside_fraction == 1.0);
   REQUIRE(before.inverted_cells == 0);
-  REQUIRE(before.crossing_segments > 0);
+  REQUIRE(before.touching_segments > 0);
   SegmentContainmentOptions options;
   options.max_shift = 100.0;  // let every move be tried
   const double end_tolerance = CheckOptions{}.end_tolerance * bounding_box(tube.positions).diagonal();
@@ -137,8 +137,8 @@ TEST_CASE("a segment move that would fold cells is undone", "[fibres][contain]")
   const CheckReport after = check(lattice, tube);
   CHECK(after.inverted_cells == 0);
   CHECK(after.inside_fraction == 1.0);
-  CHECK(report.crossing_before == before.crossing_segments);
-  CHECK(report.crossing_after == after.crossing_segments);
+  CHECK(report.crossing_before == before.touching_segments);
+  CHECK(report.crossing_after == after.touching_segments);
   CHECK(report.rejected > 0);
 }
 

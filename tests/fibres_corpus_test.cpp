@@ -69,8 +69,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     // point is inside (the check also counts a segment with a point outside).
     REQUIRE(r["containment"].contains("segments"));
     if (q["inside_fraction"].get<double>() == 1.0)
-      CHECK(r["containment"]["segments"]["crossing_after"] == q["crossing_segments"]);
-    crossing += q["crossing_segments"].get<long>();
+      CHECK(r["containment"]["segments"]["crossing_after"] == q["touching_segments"]);
+    crossing += q["touching_segments"].get<long>();
     crossing_before += r["containment"]["segments"]["crossing_before"].get<long>();
     // The retries: none after a pass; after a failure the second try (alternative placement)
     // and, unless that passes, the third (face rims left where the placement put them) run

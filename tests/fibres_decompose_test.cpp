@@ -282,7 +282,7 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   const Decomposition left = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(left.report.status == "ok");
   CHECK_FALSE(left.report.containment.contains("segments"));
-  const long crossing = left.report.quality.crossing_segments;
+  const long crossing = left.report.quality.touching_segments;
   CHECK(crossing > 0);
   options.contain_segments = true;
   const Decomposition contained = decompose_repaired(mesh, Landmarks{}, options);
@@ -291,8 +291,8 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   CHECK(segments.at("crossing_before").get<long>() == crossing);
   CHECK(segments.at("moved").get<long>() > 0);
   // The operation's count and the check's agree (the same rule, the same end tolerance).
-  CHECK(segments.at("crossing_after").get<long>() == contained.report.quality.crossing_segments);
-  CHECK(contained.report.quality.crossing_segments < crossing);
+  CHECK(segments.at("crossing_after").get<long>() == contained.report.quality.touching_segments);
+  CHECK(contained.report.quality.touching_segments < crossing);
   CHECK(contained.report.quality.inside_fraction == 1.0);
   CHECK(contained.report.quality.inverted_cells <= left.report.quality.inverted_cells);
   CHECK(contained.report.quality.max_segment_excursion <= left.report.quality.max_segment_excursion);

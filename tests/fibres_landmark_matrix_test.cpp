@@ -142,7 +142,7 @@ TEST_CASE("landmark twists: retried only with landmark areas, only while the che
 
   // A check that passes: no retry even with landmarks.
   options.landmark_twists_deg = {0.0, 30.0};
-  options.check = CheckOptions{};
+  options.check = DecomposeOptions::default_check();
   const Decomposition passing = decompose_repaired(mesh, landmarks, options);
   INFO(passing.report.attempts.dump());
   CHECK(passing.report.attempts.size() == 1);
@@ -390,6 +390,6 @@ TEST_CASE("landmark narrow stage: the whole plan again with meridian rings and n
   CHECK(decompose_repaired(mesh, landmarks, meridian).report.attempts.size() == 2);
 
   // A check that passes: the plan stops at its first try.
-  options.check = CheckOptions{};
+  options.check = DecomposeOptions::default_check();
   CHECK(decompose_repaired(mesh, landmarks, options).report.attempts.size() == 1);
 }
