@@ -66,6 +66,39 @@ void write_file_atomically(const std::string& path, const std::function<void(std
   }
 }
 
+void check_output_path(const std::string& path) {
+  const fs::path target(path);
+  if (path.empty() || target.filename().empty()) throw IoError("'" + path + "': output path names no file");
+  std::error_code ec;
+  if (fs::is_directory(target, ec)) throw IoError(path + ": output path is a directory");
+  const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  if (!fs::is_directory(dir, ec)) throw IoError(path + ": output folder " + dir.string() + " does not exist");
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) throw IoError(path + ": output folder " + dir.string() + " is not writable");
+}
+
+StagedOutputs::~StagedOutputs() {
+  for (const auto& [temporary, target] : staged_) std::remove(temporary.c_str());
+}
+
+void StagedOutputs::stage(const std::string& path, const std::function<void(const std::string&)>& write) {
+  check_output_path(path);
+  static std::atomic<unsigned> counter{0};
+  const fs::path target(path);
+  const std::string ext = target.extension().string();
+  const std::string temporary = (target.parent_path() / ("." + target.filename().string() + ".tmp." +
+                                                         std::to_string(::getpid()) + "." + std::to_string(counter++) + ext))
+                                    .string();
+  staged_.emplace_back(temporary, path);
+  write(temporary);
+}
+
+void StagedOutputs::commit() {
+  for (const auto& [temporary, target] : staged_)
+    if (std::rename(temporary.c_str(), target.c_str()) != 0)
+      throw IoError(target + ": cannot rename temporary file into place: " + std::strerror(errno));
+  staged_.clear();
+}
+
 void check_not_same_file(const std::string& input, const std::string& output) {
   std::error_code ec;
   if (fs::exists(output, ec) && fs::exists(input, ec) && fs::equivalent(input, output, ec))

@@ -57,12 +57,21 @@ MeshFormat mesh_format_from_path(const std::string& path);
 /// OBJ: an index must refer to a vertex defined above the face (as the format requires).
 PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& options = {});
 
+/// Whether `ext` (lower case, no dot) is a polyline format read_polylines / write_polylines take:
+/// vtk, vtp, vtu, obj, csv.
+bool is_polyline_extension(const std::string& ext);
+
 /// Reads polylines from `path`, the formats write_polylines writes:
-/// - .vtk: legacy polydata LINES; scalar CELL_DATA arrays of the lines become `cell_data`;
+/// - .vtk: legacy polydata LINES; one-component CELL_DATA arrays of the lines (SCALARS blocks
+///   and the arrays of FIELD blocks) become `cell_data`;
 /// - .vtp: VTK XML PolyData with format="ascii" DataArrays: one <Piece>, <Points> (3 components,
 ///   any float or integer type), <Lines> `connectivity` + `offsets`, and the one-component
 ///   <CellData> arrays (their lines' slice) as `cell_data`; binary or appended arrays are
 ///   refused (unknown_format), other arrays skipped;
+/// - .vtu: VTK XML UnstructuredGrid, the same with NumberOfCells and <Cells> `connectivity`,
+///   `offsets` and `types`, every cell a line (3) or poly-line (4); with a cell array `fibre`,
+///   consecutive cells of the same `fibre` value are joined into one polyline (the layout
+///   write_polylines writes) and the other arrays keep their first cell's value;
 /// - .obj: `l` elements; no cell data;
 /// - .csv: header exactly `fibre,r,s,point,x,y,z`, then one row per point (fibre and point
 ///   non-negative integers, the rest numbers); rows are grouped by `fibre` (lines in increasing
@@ -85,11 +94,16 @@ Polylines read_polylines(const std::string& path, const ReadOptions& options = {
 void write_triangle_mesh(const std::string& path, const TriangleMesh& mesh);
 
 /// Writes polylines to `path`, atomically, all coordinates with max_digits10 (exact round trip):
-/// - .vtk: legacy ASCII POLYDATA: POINTS double, LINES, and CELL_DATA with one
-///   `SCALARS <name> double 1` / `LOOKUP_TABLE default` array per cell_data entry (blanks in
-///   names become '_');
+/// - .vtk: legacy ASCII POLYDATA: POINTS double, LINES, and CELL_DATA with one FIELD block
+///   holding every cell_data entry as a one-component array (blanks in names become '_'), so
+///   that VTK's default readers (vtkPolyDataReader, vtkDataSetReader) load all of them;
 /// - .vtp: VTK XML PolyData, ASCII: Float64 Points, Int64 `connectivity`/`offsets` Lines, one
-///   Float64 CellData array per cell_data entry;
+///   CellData array per cell_data entry;
+/// - .vtu: VTK XML UnstructuredGrid, ASCII: the same points, one line cell (VTK type 3) per
+///   segment, with the cell array `fibre` (the line's number) and every cell_data entry per
+///   segment: meshio reads line cells (not poly-lines), VTK either;
+/// - every cell array whose values are all integers is written as integers (int, Int32), others
+///   as doubles;
 /// - .obj: `v` and `l` elements; cell data is not written;
 /// - .csv: header `fibre,r,s,point,x,y,z`, one row per point, fibres in order, points from the
 ///   first (origin) to the last; r and s are the fibre's `fibre_r` / `fibre_s` values when both

@@ -202,8 +202,9 @@ struct ArrayInfo {
 
 class VtpReader {
  public:
-  VtpReader(const std::string& path, std::string_view data, const ReadOptions& options)
-      : path_(path), data_size_(data.size()), options_(options), xml_(path, data) {}
+  /// `grid`: a .vtu UnstructuredGrid of line and poly-line cells instead of a .vtp PolyData.
+  VtpReader(const std::string& path, std::string_view data, const ReadOptions& options, bool grid = false)
+      : path_(path), data_size_(data.size()), options_(options), xml_(path, data), grid_(grid) {}
 
   Polylines read() {
     std::optional<XmlTag> root = xml_.next_tag();
@@ -211,10 +212,11 @@ class VtpReader {
       fail_line(path_, root ? root->line : xml_.line(), ErrorCode::unknown_format,
                 "not a VTK XML file (expected a <VTKFile> element)");
     const auto type = root->attributes.find("type");
-    if (type == root->attributes.end() || type->second != "PolyData")
+    const std::string expected = grid_ ? "UnstructuredGrid" : "PolyData";
+    if (type == root->attributes.end() || type->second != expected)
       fail_line(path_, root->line, ErrorCode::unknown_format,
                 "VTK XML file of type '" + (type == root->attributes.end() ? std::string() : type->second) +
-                    "', expected PolyData");
+                    "', expected " + expected);
     if (root->self_closing) fail_line(path_, root->line, ErrorCode::file_empty, "holds no polylines");
     std::vector<XmlTag> stack{*root};
     while (!stack.empty()) {
@@ -275,7 +277,7 @@ class VtpReader {
     if (have_piece_) fail_line(path_, tag.line, ErrorCode::malformed, "second <Piece> (only one piece is read)");
     have_piece_ = true;
     n_points_ = count_attribute(tag, "NumberOfPoints", true);
-    n_lines_ = count_attribute(tag, "NumberOfLines", false);
+    n_lines_ = count_attribute(tag, grid_ ? "NumberOfCells" : "NumberOfLines", grid_);
     n_verts_ = count_attribute(tag, "NumberOfVerts", false);
     n_strips_ = count_attribute(tag, "NumberOfStrips", false);
     n_polys_ = count_attribute(tag, "NumberOfPolys", false);
@@ -296,7 +298,10 @@ class VtpReader {
     if (auto it = tag.attributes.find("type"); it != tag.attributes.end()) info.type = it->second;
     if (auto it = tag.attributes.find("format"); it != tag.attributes.end()) info.format = it->second;
     info.components = tag.attributes.count("NumberOfComponents") ? count_attribute(tag, "NumberOfComponents", true) : 1;
-    const bool wanted = section == "Points" || (section == "Lines" && (info.name == "connectivity" || info.name == "offsets")) ||
+    const std::string cells = grid_ ? "Cells" : "Lines";
+    const bool wanted = section == "Points" ||
+                        (section == cells && (info.name == "connectivity" || info.name == "offsets" ||
+                                              (grid_ && info.name == "types"))) ||
                         (section == "CellData" && info.components == 1);
     if (wanted && info.format != "ascii")
       fail_line(path_, tag.line, ErrorCode::unknown_format,
@@ -307,7 +312,7 @@ class VtpReader {
       skip_to_end_of_array();
       return;
     }
-    const bool integer = section == "Lines";
+    const bool integer = section == cells;
     std::vector<double> reals;
     std::vector<std::int64_t> integers;
     const std::uint64_t limit = element_limit(options_);
@@ -346,15 +351,28 @@ class VtpReader {
       points_.resize(static_cast<std::size_t>(n_points_));
       for (std::size_t i = 0; i < points_.size(); ++i) points_[i] = Vec3(reals[3 * i], reals[3 * i + 1], reals[3 * i + 2]);
       have_points_ = true;
-    } else if (section == "Lines") {
+    } else if (section == cells) {
+      if (info.name == "types") {
+        for (std::size_t i = 0; i < integers.size(); ++i)
+          if (integers[i] != 3 && integers[i] != 4)
+            fail_line(path_, info.line, ErrorCode::unknown_format,
+                      "cell " + std::to_string(i) + " has VTK type " + std::to_string(integers[i]) +
+                          "; a polyline file holds lines (3) and poly-lines (4) only");
+        if (integers.size() != n_lines_)
+          fail_line(path_, info.line, ErrorCode::malformed,
+                    "types array holds " + std::to_string(integers.size()) + " values for NumberOfCells = " +
+                        std::to_string(n_lines_));
+        have_types_ = true;
+        return;
+      }
       (info.name == "connectivity" ? connectivity_ : offsets_) = std::move(integers);
       (info.name == "connectivity" ? connectivity_line_ : offsets_line_) = info.line;
     } else {
-      const std::uint64_t cells = n_verts_ + n_lines_ + n_strips_ + n_polys_;
-      if (reals.size() != cells)
+      const std::uint64_t cell_count = n_verts_ + n_lines_ + n_strips_ + n_polys_;
+      if (reals.size() != cell_count)
         fail_line(path_, info.line, ErrorCode::malformed,
                   "CellData array '" + info.name + "' holds " + std::to_string(reals.size()) + " values for " +
-                      std::to_string(cells) + " cells");
+                      std::to_string(cell_count) + " cells");
       CellArray array;
       array.name = info.name;
       array.values.assign(reals.begin() + static_cast<std::ptrdiff_t>(n_verts_),
@@ -382,8 +400,9 @@ class VtpReader {
   Polylines finish() {
     if (!have_piece_ || n_lines_ == 0) throw InputError(ErrorCode::file_empty, path_ + ": holds no polylines");
     if (!have_points_) throw InputError(ErrorCode::malformed, path_ + ": the <Piece> has no <Points> DataArray");
-    if (offsets_line_ == 0 || connectivity_line_ == 0)
-      throw InputError(ErrorCode::malformed, path_ + ": <Lines> needs the DataArrays 'connectivity' and 'offsets'");
+    if (offsets_line_ == 0 || connectivity_line_ == 0 || (grid_ && !have_types_))
+      throw InputError(ErrorCode::malformed, path_ + (grid_ ? ": <Cells> needs the DataArrays 'connectivity', 'offsets' and 'types'"
+                                                           : ": <Lines> needs the DataArrays 'connectivity' and 'offsets'"));
     if (offsets_.size() != n_lines_)
       fail_line(path_, offsets_line_, ErrorCode::malformed,
                 "offsets array holds " + std::to_string(offsets_.size()) + " values for NumberOfLines = " +
@@ -415,13 +434,41 @@ class VtpReader {
                 "the last offset (" + std::to_string(begin) + ") does not match the connectivity size " +
                     std::to_string(connectivity_.size()));
     result.cell_data = std::move(cell_data_);
+    if (grid_) join_segments(result);
     return result;
+  }
+
+  // A .vtu of segments with a `fibre` array: consecutive cells of one fibre become one polyline.
+  static void join_segments(Polylines& result) {
+    const auto fibre = std::find_if(result.cell_data.begin(), result.cell_data.end(),
+                                    [](const CellArray& a) { return a.name == "fibre"; });
+    if (fibre == result.cell_data.end()) return;
+    Polylines joined;
+    std::vector<std::size_t> first_cell;
+    for (std::size_t c = 0; c < result.lines.size(); ++c) {
+      const bool same = c > 0 && fibre->values[c] == fibre->values[c - 1] && !joined.lines.back().empty() &&
+                        !result.lines[c].empty() && joined.lines.back().back() == result.lines[c].front();
+      if (!same) {
+        joined.lines.push_back(result.lines[c]);
+        first_cell.push_back(c);
+        continue;
+      }
+      joined.lines.back().insert(joined.lines.back().end(), result.lines[c].begin() + 1, result.lines[c].end());
+    }
+    for (const CellArray& a : result.cell_data) {
+      if (a.name == "fibre") continue;
+      CellArray kept{a.name, {}};
+      for (std::size_t c : first_cell) kept.values.push_back(a.values[c]);
+      joined.cell_data.push_back(std::move(kept));
+    }
+    result = std::move(joined);
   }
 
   const std::string& path_;
   std::size_t data_size_;
   const ReadOptions& options_;
   XmlScanner xml_;
+  bool grid_ = false, have_types_ = false;
   bool have_piece_ = false, have_points_ = false;
   std::uint64_t n_points_ = 0, n_lines_ = 0, n_verts_ = 0, n_strips_ = 0, n_polys_ = 0;
   std::vector<Vec3> points_;
@@ -537,14 +584,18 @@ Polylines read_csv(const std::string& path, std::string_view data, const ReadOpt
 
 }  // namespace
 
+bool is_polyline_extension(const std::string& ext) {
+  return ext == "vtk" || ext == "vtp" || ext == "vtu" || ext == "obj" || ext == "csv";
+}
+
 Polylines read_polylines(const std::string& path, const ReadOptions& options) {
   const std::string ext = lower_extension(path);
-  if (ext != "vtk" && ext != "vtp" && ext != "obj" && ext != "csv")
+  if (!is_polyline_extension(ext))
     throw InputError(ErrorCode::unknown_format,
-                     path + ": unknown polyline format '" + ext + "' (expected .vtk, .vtp, .obj or .csv)");
+                     path + ": unknown polyline format '" + ext + "' (expected .vtk, .vtp, .vtu, .obj or .csv)");
   const detail::FileBytes file(path, options);
   const std::string_view data = file.view();
-  if (ext == "vtp") return VtpReader(path, data, options).read();
+  if (ext == "vtp" || ext == "vtu") return VtpReader(path, data, options, ext == "vtu").read();
   if (ext == "csv") return read_csv(path, data, options);
   std::vector<Vec3> points;
   std::vector<std::vector<int>> index_lines;

@@ -1,7 +1,7 @@
 // Legacy VTK reader for POLYDATA (Kitware, "VTK File Formats", legacy section), ASCII and BINARY
 // (big endian). Reads POINTS, POLYGONS, TRIANGLE_STRIPS and LINES in the classic cell-array form
 // (`n size` then `k i1 .. ik` per cell) and the VTK 5.1 form (OFFSETS + CONNECTIVITY arrays);
-// VERTICES are read past; a dataset FIELD or METADATA block is skipped; CELL_DATA scalar arrays
+// VERTICES are read past; a dataset FIELD or METADATA block is skipped; CELL_DATA scalar and field arrays
 // are kept for the LINES cells; reading stops at POINT_DATA or any other attribute, which carries
 // no geometry. Tolerates blank lines between the title and the ASCII/BINARY line (ALBA/NMSBuilder).
 #include "geometry/detail/parse_cursor.h"
@@ -293,14 +293,33 @@ class VtkReader {
     }
   }
 
-  /// CELL_DATA n, then SCALARS arrays (one component) kept for the LINES cells; stops at the
-  /// first attribute of another kind.
+  /// CELL_DATA n, then SCALARS arrays and FIELD blocks: their one-component arrays are kept for
+  /// the LINES cells; stops at the first attribute of another kind.
   void read_cell_data() {
     const std::uint64_t n = in_.count("cell data count", true);
     end_line();
     for (;;) {
       const std::string_view keyword = in_.token_any();
-      if (keyword.empty() || !iequals(keyword, "SCALARS")) break;
+      if (keyword.empty()) break;
+      if (iequals(keyword, "FIELD")) {
+        in_.token_in_line();  // field name
+        const std::uint64_t arrays = in_.count("array count", true);
+        end_line();
+        for (std::uint64_t a = 0; a < arrays; ++a) {
+          const std::string_view name = in_.token_any();
+          if (name.empty()) in_.fail(ErrorCode::truncated, "file ends inside a FIELD");
+          CellArray array;
+          array.name = std::string(name);
+          const std::uint64_t components = in_.count("component count", true);
+          const std::uint64_t tuples = in_.count("tuple count", true);
+          const Scalar type = type_in_line(false);
+          end_line();
+          if (components > 0 && tuples > UINT64_MAX / components) in_.fail(ErrorCode::too_large, "FIELD array is too large");
+          keep_or_skip(std::move(array), n, tuples, components, type, "FIELD array");
+        }
+        continue;
+      }
+      if (!iequals(keyword, "SCALARS")) break;
       CellArray array;
       array.name = std::string(in_.token_in_line());
       const Scalar type = type_in_line(false);
@@ -312,19 +331,26 @@ class VtkReader {
         in_.token_in_line();
         end_line();
       }
-      if (components != 1 || line_cells_ == 0 || vertex_cells_ + line_cells_ > n) {
-        if (components > 0 && n > UINT64_MAX / components) in_.fail(ErrorCode::too_large, "SCALARS array is too large");
-        skip_values(n * components, type, "SCALARS array");
-        continue;
-      }
-      check_values(n, type, "SCALARS array");
-      array.values.reserve(static_cast<std::size_t>(line_cells_));
-      for (std::uint64_t i = 0; i < n; ++i) {
-        const double value = real(type, "cell value");
-        if (i >= vertex_cells_ && i < vertex_cells_ + line_cells_) array.values.push_back(value);
-      }
-      out_.line_cell_data.push_back(std::move(array));
+      if (components > 0 && n > UINT64_MAX / components) in_.fail(ErrorCode::too_large, "SCALARS array is too large");
+      keep_or_skip(std::move(array), n, n, components, type, "SCALARS array");
     }
+  }
+
+  /// An array of `tuples` x `components` values: kept (its LINES slice) when it has one component
+  /// and one value per cell of the `cells` declared, else skipped.
+  void keep_or_skip(CellArray array, std::uint64_t cells, std::uint64_t tuples, std::uint64_t components, Scalar type,
+                    const char* what) {
+    if (components != 1 || tuples != cells || line_cells_ == 0 || vertex_cells_ + line_cells_ > cells) {
+      skip_values(tuples * components, type, what);
+      return;
+    }
+    check_values(cells, type, what);
+    array.values.reserve(static_cast<std::size_t>(line_cells_));
+    for (std::uint64_t i = 0; i < cells; ++i) {
+      const double value = real(type, "cell value");
+      if (i >= vertex_cells_ && i < vertex_cells_ + line_cells_) array.values.push_back(value);
+    }
+    out_.line_cell_data.push_back(std::move(array));
   }
 
   ParseCursor in_;

@@ -11,6 +11,7 @@ packages=(
   libglew-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   libpng-dev
   catch2 libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
+  python3 python3-numpy python3-vtk9 python3-meshio
 )
 
 missing=()

@@ -150,8 +150,10 @@ TEST_CASE("polylines round-trip through VTK (with cell data) and OBJ", "[geometr
   const std::string text = read_bytes(vtk);
   CHECK(text.find("LINES 3 12\n") != std::string::npos);
   CHECK(text.find("CELL_DATA 3\n") != std::string::npos);
-  CHECK(text.find("SCALARS length double 1\nLOOKUP_TABLE default\n") != std::string::npos);
-  CHECK(text.find("SCALARS fibre_id double 1\n") != std::string::npos);  // blanks are not allowed in VTK names
+  // One FIELD block with every array (VTK's default readers keep only the first SCALARS block);
+  // integer arrays as int, the others as double; blanks are not allowed in VTK names.
+  CHECK(text.find("FIELD FieldData 2\nlength 1 3 double\n") != std::string::npos);
+  CHECK(text.find("fibre_id 1 3 int\n0\n1\n2\n") != std::string::npos);
   const Polylines back = read_polylines(vtk);
   CHECK(back.lines == lines.lines);
   REQUIRE(back.cell_data.size() == 2);
@@ -167,6 +169,35 @@ TEST_CASE("polylines round-trip through VTK (with cell data) and OBJ", "[geometr
   const Polylines back_obj = read_polylines(obj);
   CHECK(back_obj.lines == lines.lines);
   CHECK(back_obj.cell_data.empty());
+
+  // .vtp and .vtu keep the arrays too, the integer one as Int32; a .vtu holds poly-line cells.
+  for (const char* ext : {"vtp", "vtu"}) {
+    CAPTURE(ext);
+    const std::string xml = dir.file(std::string("fibres.") + ext);
+    write_polylines(xml, lines);
+    const std::string xml_text = read_bytes(xml);
+    CHECK(xml_text.find("<DataArray type=\"Int32\" Name=\"fibre id\"") != std::string::npos);
+    CHECK(xml_text.find("<DataArray type=\"Float64\" Name=\"length\"") != std::string::npos);
+    const Polylines back_xml = read_polylines(xml);
+    CHECK(back_xml.lines == lines.lines);
+    REQUIRE(back_xml.cell_data.size() == 2);
+    CHECK(back_xml.cell_data[0].values == lines.cell_data[0].values);
+    CHECK(back_xml.cell_data[1].values == lines.cell_data[1].values);
+  }
+  // The .vtu holds one line cell per segment (2 + 1 + 3) with the fibre's number per cell.
+  const std::string vtu_text = read_bytes(dir.file("fibres.vtu"));
+  CHECK(vtu_text.find("NumberOfCells=\"6\"") != std::string::npos);
+  CHECK(vtu_text.find("Name=\"fibre\"") != std::string::npos);
+
+  // A legacy file with the older layout (one SCALARS block per array) still reads.
+  const std::string old = dir.file("old.vtk");
+  std::ofstream(old) << "# vtk DataFile Version 3.0\nold\nASCII\nDATASET POLYDATA\nPOINTS 2 double\n0 0 0 1 1 1\n"
+                        "LINES 1 3\n2 0 1\nCELL_DATA 1\nSCALARS fibre_r double 1\nLOOKUP_TABLE default\n4\n"
+                        "SCALARS fibre_s int 1\nLOOKUP_TABLE default\n5\n";
+  const Polylines back_old = read_polylines(old);
+  REQUIRE(back_old.cell_data.size() == 2);
+  CHECK(back_old.cell_data[0].values == std::vector<double>{4.0});
+  CHECK(back_old.cell_data[1].values == std::vector<double>{5.0});
 }
 
 TEST_CASE("thesis format round trip", "[geometry][io]") {
