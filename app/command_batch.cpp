@@ -28,6 +28,7 @@
 #include <memory>
 #include <mutex>
 #include <sstream>
+#include <cstdint>
 #include <thread>
 
 namespace fascicle::app {
@@ -40,7 +41,7 @@ struct BatchArgs {
   std::string input, output, format = "vtk", landmarks = "none";
   int jobs = 1;
   double time_limit = 600.0;
-  bool force = false, keep_failed = false;
+  bool force = false, keep_failed = false, retry_failed = false;
   std::vector<std::string> forwarded;  // decompose options, passed through
 };
 
@@ -50,7 +51,7 @@ struct Muscle {
 };
 
 struct Outcome {
-  std::string status = "not run", error;
+  std::string status = "not run", error;  ///< "not run", "running", "ok", "failed"
   int exit_code = -1;
   double seconds = 0.0;
   double inside_fraction = std::numeric_limits<double>::quiet_NaN(), coverage_p95 = inside_fraction,
@@ -185,12 +186,73 @@ void write_summary(const std::string& path, const std::vector<Muscle>& muscles, 
            "segment_excursion,layer_ratio,error\n";
     for (std::size_t i = 0; i < muscles.size(); ++i) {
       const Outcome& o = outcomes[i];
-      out << csv_field(muscles[i].name) << ',' << o.status << ',' << o.exit_code << ',' << o.seconds << ','
+      char seconds[32];
+      std::snprintf(seconds, sizeof(seconds), "%.3f", o.seconds);
+      out << csv_field(muscles[i].name) << ',' << o.status << ',' << o.exit_code << ',' << seconds << ','
           << o.inside_fraction << ',' << o.inverted_cells << ',' << o.coverage_p95 << ',' << o.attachment << ','
           << o.crossing_segments << ',' << o.segment_excursion << ',' << o.layer_ratio << ',' << csv_field(o.error)
           << '\n';
     }
   });
+}
+
+// FNV-1a, 64 bits: a fingerprint that is the same on every build and machine.
+std::uint64_t fnv1a(const std::string& bytes, std::uint64_t hash = 1469598103934665603ULL) {
+  for (unsigned char c : bytes) hash = (hash ^ c) * 1099511628211ULL;
+  return hash;
+}
+
+std::string file_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream content;
+  content << in.rdbuf();
+  return content.str();
+}
+
+// What a muscle's result depends on: its input's bytes, its landmark files', the decompose
+// options forwarded and the fibre format. A report made from another request is redone.
+std::string request_fingerprint(const Muscle& m, const BatchArgs& args) {
+  std::uint64_t h = fnv1a(file_bytes(m.input));
+  for (const std::string& path : {m.origin, m.insertion}) h = fnv1a(path.empty() ? std::string("-") : file_bytes(path), h);
+  for (const std::string& option : args.forwarded) h = fnv1a(option + '\0', h);
+  h = fnv1a("format=" + args.format, h);
+  h = fnv1a(args.keep_failed ? "keep-failed" : "", h);
+  char text[17];
+  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+// The batch's record in a muscle's report: the request's fingerprint, the process's exit code
+// and seconds (read back for a muscle a resumed batch skips).
+void record_batch(const std::string& report_path, const std::string& fingerprint, const Outcome& o) {
+  nlohmann::json r;
+  {
+    std::ifstream in(report_path);
+    try {
+      if (in) r = nlohmann::json::parse(in);
+    } catch (const std::exception&) {
+      r = nlohmann::json::object();
+    }
+  }
+  if (!r.is_object()) r = nlohmann::json::object();
+  if (!r.contains("status")) r["status"] = o.status;
+  if (!r.contains("error") && !o.error.empty()) r["error"] = o.error;
+  r["batch"] = {{"fingerprint", fingerprint}, {"exit_code", o.exit_code}, {"seconds", o.seconds}};
+  write_file_atomically(report_path, [&](std::ostream& out) { out << std::setw(2) << r << '\n'; });
+}
+
+// The fingerprint and outcome a report's batch record holds ("" when it has none).
+std::string recorded_fingerprint(const std::string& report_path, Outcome& o) {
+  std::ifstream in(report_path);
+  try {
+    const nlohmann::json r = nlohmann::json::parse(in);
+    if (!r.contains("batch")) return "";
+    o.exit_code = r["batch"].value("exit_code", o.exit_code);
+    o.seconds = r["batch"].value("seconds", o.seconds);
+    return r["batch"].value("fingerprint", std::string());
+  } catch (const std::exception&) {
+    return "";
+  }
 }
 
 std::string self_path() {
@@ -229,16 +291,34 @@ int remove_stale_temporaries(const std::string& folder) {
 }
 
 void run_batch(const BatchArgs& args) {
-  if (args.jobs < 1 || args.jobs > 256) throw OptionError("jobs: must be in 1..256, got " + std::to_string(args.jobs));
-  if (!(args.time_limit >= 0.0)) throw OptionError("time-limit: must be >= 0");
+  if (args.jobs < 1 || args.jobs > 256) throw OptionError("--jobs: must be in 1..256, got " + std::to_string(args.jobs));
+  if (!(args.time_limit >= 0.0)) throw OptionError("--muscle-time-limit: must be >= 0");
   const std::vector<Muscle> muscles = list_muscles(args);
   fs::create_directories(args.output);
+  const std::string program = self_path();
+  // The options once, before any muscle: a bad value is one error, not a failed report per muscle.
+  {
+    std::vector<std::string> argv = {program, "-q", "decompose", muscles.front().input, "-o",
+                                     (fs::path(args.output) / ("check." + args.format)).string(), "--check-options"};
+    argv.insert(argv.end(), args.forwarded.begin(), args.forwarded.end());
+    const std::string log = (fs::path(args.output) / ".options.log").string();
+    const int code = run_process(argv, log);
+    std::string message = file_bytes(log);
+    std::error_code ec;
+    fs::remove(log, ec);
+    if (code != 0) {
+      while (!message.empty() && (message.back() == '\n' || message.back() == '\r')) message.pop_back();
+      const auto prefix = message.find("error: ");
+      if (prefix != std::string::npos) message = message.substr(prefix + 7);
+      throw Error(code > 0 && code < 128 ? static_cast<ErrorCode>(code) : ErrorCode::internal,
+                  "batch: the decompose options are refused: " + message);
+    }
+  }
   if (const int stale = remove_stale_temporaries(args.output); stale > 0)
     spdlog::info("batch: removed {} temporary file(s) left by an interrupted run", stale);
-  const std::string program = self_path();
   std::vector<Outcome> outcomes(muscles.size());
   std::atomic<std::size_t> next{0};
-  std::atomic<int> done{0}, failed{0}, skipped{0};
+  std::atomic<int> done{0}, failed{0}, skipped{0}, redone{0};
   std::mutex mutex;
   const bool tty = isatty(2) != 0;
   const auto start = std::chrono::steady_clock::now();
@@ -251,6 +331,7 @@ void run_batch(const BatchArgs& args) {
                  last.c_str());
     std::fflush(stderr);
   };
+  const std::string summary = (fs::path(args.output) / "summary.csv").string();
   auto worker = [&]() {
     for (std::size_t i = next++; i < muscles.size(); i = next++) {
       const Muscle& m = muscles[i];
@@ -259,21 +340,43 @@ void run_batch(const BatchArgs& args) {
       fs::create_directories(base.parent_path());
       const std::string fibres = base.string() + "." + args.format;
       const std::string report = base.string() + ".report.json";
+      const std::string fingerprint = request_fingerprint(m, args);
+      // A report of the same request is kept (failed ones too, unless --retry-failed); one made
+      // from other options, another format or a changed input is redone.
+      bool skip = false;
       if (!args.force && fs::exists(report)) {
-        read_outcome(report, o);
-        o.skipped = true;
-        o.exit_code = o.status == "ok" ? 0 : -1;
-        ++skipped;
-      } else {
+        Outcome recorded;
+        read_outcome(report, recorded);
+        const std::string previous = recorded_fingerprint(report, recorded);
+        if (previous == fingerprint && !(args.retry_failed && recorded.status != "ok")) {
+          o = recorded;
+          o.skipped = true;
+          skip = true;
+          ++skipped;
+        } else if (previous != fingerprint) {
+          ++redone;
+        }
+      }
+      if (!skip) {
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          o.status = "running";
+          write_summary(summary, muscles, outcomes);
+        }
+        std::error_code ec;
+        fs::remove(report, ec);  // a report of another request must not stand for this run
+        fs::remove(fibres, ec);
         std::vector<std::string> argv = {program, "-q", "decompose", m.input, "-o", fibres, "--report", report};
         if (args.time_limit > 0.0) argv.insert(argv.begin() + 1, {"--time-limit", std::to_string(args.time_limit)});
         if (!m.origin.empty()) argv.insert(argv.end(), {"--origin", m.origin, "--insertion", m.insertion});
         if (args.keep_failed) argv.push_back("--keep-failed");
         argv.insert(argv.end(), args.forwarded.begin(), args.forwarded.end());
         const auto t0 = std::chrono::steady_clock::now();
+        o.status = "not run";
         o.exit_code = run_process(argv, base.string() + ".log");
         o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         read_outcome(report, o);
+        o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         if (o.exit_code == 0) o.status = "ok";
         else if (o.status == "ok" || o.status == "not run") o.status = "failed";
         if (o.error.empty() && o.exit_code != 0) {
@@ -283,17 +386,15 @@ void run_batch(const BatchArgs& args) {
             if (!line.empty()) last = line;
           o.error = last.empty() ? "exit code " + std::to_string(o.exit_code) : last;
         }
-        if (!fs::exists(report)) {
-          // The process died before it could write its report (a signal, the time limit): record
-          // the failure so that a resumed batch does not retry it forever; --force retries.
-          nlohmann::json r = {{"status", "failed"}, {"error", o.error}, {"exit_code", o.exit_code}};
-          write_file_atomically(report, [&](std::ostream& out) { out << r.dump(2) << '\n'; });
-        }
+        // The process died before it could write its report (a signal, the time limit) or wrote
+        // one: either way the report records the request, the exit code and the time, so that a
+        // resumed batch keeps it (--force or --retry-failed redo it).
+        record_batch(report, fingerprint, o);
       }
       if (o.status != "ok") ++failed;
       ++done;
       std::lock_guard<std::mutex> lock(mutex);
-      write_summary((fs::path(args.output) / "summary.csv").string(), muscles, outcomes);
+      write_summary(summary, muscles, outcomes);
       progress(m.name);
     }
   };
@@ -302,13 +403,24 @@ void run_batch(const BatchArgs& args) {
   for (std::thread& t : threads) t.join();
   if (tty) std::fprintf(stderr, "\n");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("batch: {} muscles, {} ok, {} failed, {} skipped (already done) in {:.1f} s; summary in {}",
+  spdlog::info("batch: {} muscles, {} ok, {} failed, {} skipped (already done with these options){} in {:.1f} s; "
+               "summary in {}",
                muscles.size(), muscles.size() - static_cast<std::size_t>(failed.load()), failed.load(), skipped.load(),
-               seconds, (fs::path(args.output) / "summary.csv").string());
-  if (failed.load() > 0)
-    throw Error(ErrorCode::quality, "batch: " + std::to_string(failed.load()) + " of " +
-                                        std::to_string(muscles.size()) + " muscles failed; see " +
-                                        (fs::path(args.output) / "summary.csv").string());
+               redone.load() > 0 ? ", " + std::to_string(redone.load()) + " redone (their options, format or input changed)"
+                                 : std::string(),
+               seconds, summary);
+  if (failed.load() > 0) {
+    // 19 when every failure is the quality check's; else the exit code of the first muscle that
+    // failed otherwise (a repair that failed, a time limit, a crash).
+    int code = exit_code(ErrorCode::quality);
+    for (const Outcome& o : outcomes)
+      if (o.status != "ok" && o.exit_code != exit_code(ErrorCode::quality)) {
+        code = o.exit_code > 0 && o.exit_code < 128 ? o.exit_code : exit_code(ErrorCode::internal);
+        break;
+      }
+    throw Error(static_cast<ErrorCode>(code), "batch: " + std::to_string(failed.load()) + " of " +
+                                                  std::to_string(muscles.size()) + " muscles failed; see " + summary);
+  }
 }
 
 }  // namespace
@@ -322,8 +434,8 @@ void add_batch_command(CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Output folder: fibres, report and log per muscle, summary.csv")
       ->required();
   cmd->add_option("--jobs", args->jobs, "Muscles decomposed at once")->capture_default_str();
-  cmd->add_option("--format", args->format, "Fibre file format: vtk, vtp, obj, csv")
-      ->check(CLI::IsMember({"vtk", "vtp", "obj", "csv"}))
+  cmd->add_option("--format", args->format, "Fibre file format: vtk, vtp, vtu, obj, csv")
+      ->check(CLI::IsMember({"vtk", "vtp", "vtu", "obj", "csv"}))
       ->capture_default_str();
   cmd->add_option("--landmarks", args->landmarks,
                   "none (automatic areas) or beside (P.origin.xyz and P.insertion.xyz next to a mesh whose name starts "
@@ -334,38 +446,28 @@ void add_batch_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--force", args->force, "Redo muscles that already have a report");
   cmd->add_flag("--keep-failed", args->keep_failed, "Write fibres even for muscles that fail the check");
-  // Decompose options, passed through unchanged.
-  for (const char* name : {"--template", "--fibres", "--resolution", "--model", "--solver", "--tolerance",
-                           "--max-iterations", "--backend", "--smooth", "--smooth-weight", "--rest", "--corner-twist",
-                           "--even-perimeter", "--retry", "--retry-max-inverted", "--landmark-strip",
-                           "--strip-max-gap", "--strip-fallback", "--max-face-depth", "--region-radius",
-                           "--landmark-centre-keep", "--untangle-containment-energy", "--untangle-containment-retry",
-                           "--end-fraction", "--connected-ends", "--connect-margin", "--max-end-fraction",
-                           "--placement-end-share", "--end-share-retry", "--harmonic-direct-points", "--contain-segments",
-                           "--meridian-rings", "--even-layers-ratio", "--edge-cell", "--edge-cell-fallback",
-                           "--landmark-narrow-retry", "--untangle-iterations", "--untangle-contact-rounds",
-                           "--untangle-keep-best", "--untangle-across-spacing"}) {
-    auto value = std::make_shared<std::string>();
-    cmd->add_option(name, *value, std::string("Passed to decompose (") + name + ")")
-        ->each([args, name](const std::string& v) {
-          args->forwarded.push_back(name);
+  cmd->add_flag("--retry-failed", args->retry_failed, "Redo muscles whose report says they failed");
+  // Every decompose option, passed through unchanged: one table, decompose's own.
+  CLI::App mirror;
+  add_decompose_command(mirror);
+  const CLI::App* decompose = mirror.get_subcommand("decompose");
+  for (const CLI::Option* option : decompose->get_options()) {
+    const std::string name = option->get_name();
+    if (option->get_positional() || name == "--help" || name == "-h,--help" || name == "--output" || name == "-o,--output" ||
+        name == "--report" || name == "--write-repaired" || name == "--origin" || name == "--insertion" ||
+        name == "--keep-failed" || name == "--check-options")
+      continue;
+    const std::string flag = option->get_lnames().empty() ? name : "--" + option->get_lnames().front();
+    auto seen = std::make_shared<bool>(false);
+    cmd->add_option(flag, option->get_description())
+        ->expected(option->get_expected_min(), option->get_expected_max())
+        ->each([args, flag, seen](const std::string& v) {
+          if (!*seen) args->forwarded.push_back(flag);
+          *seen = true;
           args->forwarded.push_back(v);
-        });
-    // keep the shared_ptr alive with the command
-    static std::vector<std::shared_ptr<std::string>> keep;
-    keep.push_back(value);
+        })
+        ->group("Decompose options (passed to every muscle's decompose)");
   }
-  // --landmark-twists takes several values: forwarded after one flag.
-  auto twists = std::make_shared<std::vector<std::string>>();
-  cmd->add_option("--landmark-twists", *twists, "Passed to decompose (--landmark-twists)")
-      ->expected(1, 16)
-      ->each([args](const std::string& v) {
-        if (std::find(args->forwarded.begin(), args->forwarded.end(), "--landmark-twists") == args->forwarded.end())
-          args->forwarded.push_back("--landmark-twists");
-        args->forwarded.push_back(v);
-      });
-  static std::vector<std::shared_ptr<std::vector<std::string>>> keep_twists;
-  keep_twists.push_back(twists);
   cmd->callback([args] { run_batch(*args); });
 }
 

@@ -26,7 +26,7 @@ struct DecomposeArgs {
   std::string rest = "tension";
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
   int model = 6;
-  bool keep_failed = false;
+  bool keep_failed = false, check_options = false;
   std::vector<std::string> landmark_twists;  // --landmark-twists: degrees, or "none"; empty: default
   DecomposeOptions options;
 };
@@ -58,9 +58,26 @@ void run_decompose(const DecomposeArgs& args) {
   options.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
+  // Every output is checked before the work: its folder and its format.
   check_not_same_file(args.input, args.output);
-  if (!args.report.empty()) check_not_same_file(args.input, args.report);
-  if (!args.repaired_output.empty()) check_not_same_file(args.input, args.repaired_output);
+  check_output_path(args.output);
+  if (!is_polyline_extension(lower_extension(args.output)))
+    throw InputError(ErrorCode::unknown_format, args.output + ": cannot write fibres as '" + lower_extension(args.output) +
+                                                    "' (use .vtk, .vtp, .vtu, .obj or .csv)");
+  if (!args.report.empty()) {
+    check_not_same_file(args.input, args.report);
+    check_output_path(args.report);
+  }
+  if (!args.repaired_output.empty()) {
+    check_not_same_file(args.input, args.repaired_output);
+    check_output_path(args.repaired_output);
+    const std::string ext = lower_extension(args.repaired_output);
+    if (ext != "off" && ext != "obj" && ext != "stl" && ext != "ply" && ext != "vtk")
+      throw InputError(ErrorCode::unknown_format, args.repaired_output + ": cannot write a mesh as '" + ext +
+                                                      "' (use .off, .obj, .stl, .ply or .vtk)");
+  }
+
+  if (args.check_options) return;  // --check-options: options and outputs checked, no work
 
   const PolygonSoup soup = read_polygon_soup(args.input);
   spdlog::info("read {}: {} points, {} faces", args.input, soup.points.size(), soup.polygons.size());
@@ -76,27 +93,31 @@ void run_decompose(const DecomposeArgs& args) {
     const Decomposition result = decompose(soup, landmarks, options);
     report.update(result.report.to_json());
     const CheckReport& q = result.report.quality;
+    const DecomposeReport& r = result.report;
+    // The outputs of the run appear together, after the work: a failure on the way leaves none.
+    StagedOutputs outputs;
+    const bool write_fibres = q.pass || args.keep_failed;
+    if (write_fibres) {
+      outputs.stage(args.output, [&](const std::string& path) { write_polylines(path, result.fibres); });
+      if (!args.repaired_output.empty())
+        outputs.stage(args.repaired_output, [&](const std::string& path) { write_triangle_mesh(path, result.muscle); });
+    }
+    if (!args.report.empty()) outputs.stage(args.report, [&](const std::string& path) { write_json_report(path, report); });
+    outputs.commit();
+    const std::string kept = r.attempts.size() > 1 ? "; try " + std::to_string(r.kept_attempt + 1) + " of " +
+                                                         std::to_string(r.attempts.size()) + " kept (" +
+                                                         r.attempts[static_cast<std::size_t>(r.kept_attempt)].value("change", "none") + ")"
+                                                   : "";
     if (!q.pass) {
-      if (!args.report.empty()) write_json_report(args.report, report);
-      if (args.keep_failed) {
-        if (!args.repaired_output.empty()) write_triangle_mesh(args.repaired_output, result.muscle);
-        write_polylines(args.output, result.fibres);
-      }
       std::string failed;
       for (const std::string& f : q.failed) failed += (failed.empty() ? "" : ", ") + f;
-      throw Error(ErrorCode::quality, "decompose: the fibres fail the check (" + failed + ")" + std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
+      spdlog::info("{}{}", q.summary(), kept);
+      throw Error(ErrorCode::quality, "decompose: the fibres fail the check (" + failed + ")" +
+                                          std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
                                           (args.report.empty() ? "" : ", details in " + args.report));
     }
-    if (!args.repaired_output.empty()) write_triangle_mesh(args.repaired_output, result.muscle);
-    write_polylines(args.output, result.fibres);
-    if (!args.report.empty()) write_json_report(args.report, report);
-    const DecomposeReport& r = result.report;
-    spdlog::info("wrote {}: {} fibres x {} points; inside {:.6g}, inverted cells {}, coverage p95 {:.3g}, "
-                 "attachment {:.3g}/{:.3g} of the length ({:.3f} s: repair {:.3f}, sphere {:.3f}, placement {:.3f}, "
-                 "settle {:.3f}, check {:.3f})",
-                 args.output, result.fibres.lines.size(), options.resolution, q.inside_fraction, q.inverted_cells,
-                 q.coverage.p95, q.attachment.origin_max, q.attachment.insertion_max, r.seconds, r.repair_seconds,
-                 r.sphere_seconds, r.placement_seconds, r.settle_seconds, r.check_seconds);
+    spdlog::info("wrote {}: {} fibres x {} points in {:.3f} s; {}{}", args.output, result.fibres.lines.size(),
+                 options.resolution, r.seconds, q.summary(), kept);
   } catch (const Error& e) {
     write_failure_report(args.report, report, e);
     throw;
@@ -110,7 +131,7 @@ void add_decompose_command(CLI::App& app) {
   DecomposeOptions& o = args->options;
   CLI::App* cmd = app.add_subcommand("decompose", "Muscle surface in, muscle fibres out (repaired, mapped, settled, checked)");
   cmd->add_option("input", args->input, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired first")->required();
-  cmd->add_option("-o,--output", args->output, "Fibres: .vtk, .vtp, .obj (polylines) or .csv")->required();
+  cmd->add_option("-o,--output", args->output, "Fibres: .vtk, .vtp, .vtu, .obj (polylines) or .csv")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (every stage, quality)");
   cmd->add_option("--write-repaired", args->repaired_output, "Also write the repaired muscle (off, obj, stl, ply, vtk)");
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
@@ -284,6 +305,8 @@ void add_decompose_command(CLI::App& app) {
                   "Untangling: farthest a freed fibre end may lie from its attachment area, as a share of the muscle "
                   "length (0: within the end shift of its cast place)")
       ->capture_default_str();
+  cmd->add_flag("--check-options", args->check_options,
+                "Check the options and the output paths, then exit without reading the input (0: all good)");
   cmd->add_flag("--keep-failed", args->keep_failed,
                 "Write the fibres even when they fail the check, for inspection (the exit code is still 19)");
   cmd->callback([args] { run_decompose(*args); });

@@ -777,8 +777,8 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   std::ofstream((in / "sub" / "broken.off").string()) << "not a mesh\n";
   const std::filesystem::path out = dir.path() / "out";
   const std::string cmd = test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
-  // The broken mesh fails, the batch goes on and says so with the quality code.
-  CHECK(test::run_command(cmd + " 2>/dev/null") == 19);
+  // The broken mesh fails, the batch goes on and says so with the broken mesh's code.
+  CHECK(test::run_command(cmd + " 2>/dev/null") == 5);
   CHECK(std::filesystem::exists(out / "capsule.vtk"));
   CHECK(std::filesystem::exists(out / "capsule.report.json"));
   CHECK(std::filesystem::exists(out / "sub" / "broken.report.json"));
@@ -806,7 +806,7 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   CHECK_FALSE(std::getline(summary, extra));
   // Resumable: a second run redoes nothing (the fibre file keeps its time stamp).
   const auto stamp = std::filesystem::last_write_time(out / "capsule.vtk");
-  CHECK(test::run_command(cmd + " 2>/dev/null") == 19);
+  CHECK(test::run_command(cmd + " 2>/dev/null") == 5);
   CHECK(std::filesystem::last_write_time(out / "capsule.vtk") == stamp);
   // A list file works as input too; a missing entry is a one-line error (code 3).
   const std::string list = (dir.path() / "list.txt").string();
