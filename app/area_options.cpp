@@ -1,7 +1,32 @@
 #include "app/commands.h"
 #include "morph/attachments.h"
 
+#include <algorithm>
+
 namespace fascicle::app {
+
+namespace {
+bool all_options = false;
+}
+
+bool show_all_options() { return all_options; }
+void set_show_all_options(bool all) { all_options = all; }
+
+void group_options(CLI::App* cmd, const std::vector<std::pair<std::string, std::vector<std::string>>>& groups,
+                   const std::string& advanced) {
+  for (CLI::Option* option : cmd->get_options()) {
+    if (option->get_name() == "-h,--help" || option->get_name() == "--help") continue;
+    std::string name = option->get_positional() ? option->get_name() : option->get_name();
+    if (!option->get_lnames().empty()) name = "--" + option->get_lnames().front();
+    std::string group = all_options ? advanced : "";
+    for (const auto& [title, names] : groups)
+      if (std::find(names.begin(), names.end(), name) != names.end()) {
+        group = title;
+        break;
+      }
+    option->group(group);
+  }
+}
 
 void add_automatic_area_options(CLI::App* cmd, AttachmentOptions& options) {
   cmd->add_option("--end-fraction", options.end_fraction, "Automatic areas: share of the length taken at each end")

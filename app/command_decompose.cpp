@@ -13,6 +13,10 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,7 +27,8 @@ namespace {
 
 struct DecomposeArgs {
   std::string input, output, report, origin, insertion, repaired_output;
-  std::string rest = "tension";
+  std::string rest = "tension", quality = "standard";
+  const CLI::App* command = nullptr;  // for which options were given explicitly
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
   int model = 6;
   bool keep_failed = false, check_options = false;
@@ -33,6 +38,15 @@ struct DecomposeArgs {
 
 void run_decompose(const DecomposeArgs& args) {
   DecomposeOptions options = args.options;
+  // --quality sets the options its level names, except those given explicitly.
+  {
+    const DecomposeOptions level = with_quality(options, parse_quality(args.quality));
+    const auto given = [&](const char* name) { return args.command != nullptr && args.command->count(name) > 0; };
+    if (!given("--fibres")) options.fibres = level.fibres;
+    if (!given("--resolution")) options.resolution = level.resolution;
+    if (!given("--tolerance")) options.settle.tolerance = level.settle.tolerance;
+    options.check.coverage_samples = level.check.coverage_samples;
+  }
   options.kind = springs::parse_template_kind(args.kind);
   options.model = springs::parse_spring_model(args.model);
   options.settle.solver = springs::parse_solver_kind(args.solver);
@@ -89,8 +103,25 @@ void run_decompose(const DecomposeArgs& args) {
     landmarks.insertion_source = args.insertion;
   }
   nlohmann::json report = {{"input_file", args.input}, {"output_file", args.output}};
+  // On a terminal, each stage as it starts on one line of stderr (-q: errors only, so none).
+  const bool terminal = isatty(2) != 0 && spdlog::get_level() <= spdlog::level::info;
+  const auto started = std::chrono::steady_clock::now();
+  if (terminal)
+    options.progress = [started](const std::string& stage) {
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      std::fprintf(stderr, "\r\033[Kdecompose: %6.1f s  %s", seconds, stage.c_str());
+      std::fflush(stderr);
+    };
+  struct EndLine {
+    bool on;
+    ~EndLine() {
+      if (on) std::fprintf(stderr, "\r\033[K");
+    }
+  } end_line{terminal};
   try {
     const Decomposition result = decompose(soup, landmarks, options);
+    if (end_line.on) std::fprintf(stderr, "\r\033[K");
+    end_line.on = false;
     report.update(result.report.to_json());
     const CheckReport& q = result.report.quality;
     const DecomposeReport& r = result.report;
@@ -309,6 +340,19 @@ void add_decompose_command(CLI::App& app) {
                 "Check the options and the output paths, then exit without reading the input (0: all good)");
   cmd->add_flag("--keep-failed", args->keep_failed,
                 "Write the fibres even when they fail the check, for inspection (the exit code is still 19)");
+  cmd->add_option("--quality", args->quality,
+                  "Speed against accuracy: draft (36 fibres x 9 points, tolerance 1e-4), standard (100 x 15, 1e-6) or "
+                  "fine (225 x 21, 1e-7); --fibres, --resolution and --tolerance given explicitly win")
+      ->check(CLI::IsMember({"draft", "standard", "fine"}))
+      ->capture_default_str();
+  args->command = cmd;
+  group_options(cmd,
+                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--keep-failed", "--check-options"}},
+                 {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
+                 {"Template and fibres", {"--template", "--fibres", "--resolution"}},
+                 {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
+                "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
+  cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");
   cmd->callback([args] { run_decompose(*args); });
 }
 

@@ -5,11 +5,26 @@
 
 #include <CLI/CLI.hpp>
 
+#include <string>
+#include <utility>
+#include <vector>
+
 namespace fascicle {
 struct AttachmentOptions;
 }
 
 namespace fascicle::app {
+
+/// Whether the help shows every option (`--help-all`) or the main ones only (`--help`); set by
+/// main() before the commands are added.
+bool show_all_options();
+void set_show_all_options(bool all);
+
+/// Puts each option of `cmd` into the first group that lists its name (long name with the
+/// dashes, or the positional's name); the others go to a group titled `advanced`, which the
+/// help lists only with --help-all. Groups are shown in the order given.
+void group_options(CLI::App* cmd, const std::vector<std::pair<std::string, std::vector<std::string>>>& groups,
+                   const std::string& advanced);
 
 /// The automatic attachment areas' options (--end-fraction, --connected-ends, --connect-margin,
 /// --max-end-fraction), one definition for decompose, check and sphere.

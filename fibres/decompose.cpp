@@ -371,6 +371,38 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   return s;
 }
 
+const char* quality_name(Quality quality) {
+  switch (quality) {
+    case Quality::draft: return "draft";
+    case Quality::standard: return "standard";
+    case Quality::fine: return "fine";
+  }
+  return "?";
+}
+
+Quality parse_quality(const std::string& name) {
+  if (name == "draft") return Quality::draft;
+  if (name == "standard") return Quality::standard;
+  if (name == "fine") return Quality::fine;
+  throw OptionError("--quality: unknown level '" + name + "' (valid: draft, standard, fine)");
+}
+
+DecomposeOptions with_quality(DecomposeOptions options, Quality quality) {
+  struct Level {
+    int fibres, resolution;
+    double tolerance;
+    int samples;
+  };
+  const Level level = quality == Quality::draft    ? Level{36, 9, 1e-4, 5000}
+                      : quality == Quality::fine ? Level{225, 21, 1e-7, 40000}
+                                                 : Level{100, 15, 1e-6, 20000};
+  options.fibres = level.fibres;
+  options.resolution = level.resolution;
+  options.settle.tolerance = level.tolerance;
+  options.check.coverage_samples = level.samples;
+  return options;
+}
+
 CheckOptions DecomposeOptions::default_check() {
   CheckOptions c;
   c.max_crossing_segments = -1;
@@ -457,6 +489,7 @@ nlohmann::json DecomposeReport::to_json() const {
 Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options) {
   options.validate();
   const auto start = Clock::now();
+  if (options.progress) options.progress("repair");
   RepairResult repaired = repair_mesh(soup, options.repair);
   const double repair_seconds = since(start);
   Decomposition out = decompose_repaired(repaired.mesh, landmarks, options);
@@ -536,6 +569,10 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   out.muscle = muscle;
   DecomposeReport& report = out.report;
 
+  const auto stage_started = [&](const char* what) {
+    if (options.progress) options.progress(std::string(what));
+  };
+  stage_started("place the template");
   // Attachment areas.
   Attachments areas;
   nlohmann::json strip;  // landmark areas only: how they were joined
@@ -590,6 +627,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   report.placement_seconds = since(stage);
 
   // Settle: zero-rest-length equilibrium first, then the template's stretched rest lengths.
+  stage_started("settle");
   stage = Clock::now();
   springs::SpringSystem system = lattice.system;
   const std::vector<Vec3> template_positions = system.positions;
@@ -729,6 +767,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
   // containment.
   if (options.untangle_cells) {
+    stage_started("untangle");
     const LatticeUntangleReport untangled =
         untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas);
     pinned += static_cast<int>(untangled.pinned);
@@ -797,6 +836,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       if (!p.allFinite()) throw SolverError("decompose: a fibre point is not finite; check the settle options");
 
   // Check.
+  stage_started("check");
   stage = Clock::now();
   report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
   // Step 10's moves guard the points, the segments and the cells, not the coverage (a global
@@ -961,6 +1001,7 @@ PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const
       continue;
     }
     try {
+      if (options.progress) options.progress("try " + std::to_string(attempts.size() + 1) + " (" + change + ")");
       Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, gpu);
       if (step.starts_sequence) {
         first_inverted = d.report.quality.inverted_cells;
@@ -1035,6 +1076,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   even.edge_cell = 1.0;
   PreparedLattice prepared, prepared_even;
   double query_seconds = 0.0;
+  if (options.progress) options.progress("map onto the sphere");
   tbb::parallel_invoke(
       [&] {
         const auto t = Clock::now();

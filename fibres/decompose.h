@@ -49,6 +49,7 @@
 #include "springs/settle.h"
 
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <string>
 #include <vector>
 #include <utility>
@@ -211,6 +212,9 @@ struct DecomposeOptions {
   /// session); the psoas with the curved, fanned and rectus templates passes only on this stage
   /// (twenty-seventh session).
   bool landmark_narrow_retry = true;
+  /// Not a setting: called with a short description of each stage as it starts ("repair",
+  /// "try 2: settle", ...) so that a caller can show progress; empty: nothing is called (default).
+  std::function<void(const std::string& stage)> progress;
   /// Throws OptionError naming the first bad field.
   void validate() const;
   static springs::SettleOptions default_settle();
@@ -220,6 +224,19 @@ struct DecomposeOptions {
   /// (docs/decompose.md, "Where it stands"), which `fascicle check` judges.
   static CheckOptions default_check();
 };
+
+/// Speed against accuracy as one choice: a documented set of fibre count, points per fibre, the
+/// settle's tolerance and the check's coverage samples.
+///   draft:    36 fibres x 9 points, tolerance 1e-4, 5000 coverage samples
+///   standard: 100 fibres x 15 points, tolerance 1e-6, 20000 coverage samples (the defaults)
+///   fine:     225 fibres x 21 points, tolerance 1e-7, 40000 coverage samples
+enum class Quality { draft, standard, fine };
+/// "draft", "standard", "fine".
+const char* quality_name(Quality quality);
+/// Parses a level's name; throws OptionError naming `--quality` and the valid names.
+Quality parse_quality(const std::string& name);
+/// `options` with the level's fibres, resolution, settle.tolerance and check.coverage_samples.
+DecomposeOptions with_quality(DecomposeOptions options, Quality quality);
 
 /// Landmark files of the attachment areas (both or neither).
 struct Landmarks {

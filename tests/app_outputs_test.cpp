@@ -10,6 +10,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -154,4 +155,46 @@ TEST_CASE("batch resumes only what was asked for the same way, and takes every d
   CHECK(run("batch " + (in / "a.off").string() + " -o " + out2.string() + " --untangle false --sphere-method tutte "
             "--max-landmark-distance 0.3 --landmark-twists 0 45") == 0);
   CHECK(read_polylines((out2 / "a.vtk").string()).lines.size() == 100);
+}
+
+TEST_CASE("help, suggestions, global options anywhere, errors that name the option, quality levels", "[app][cli]") {
+  test::TempDir dir;
+  const std::string muscle = dir.file("capsule.off");
+  write_triangle_mesh(muscle, capsule());
+  const auto output_of = [&](const std::string& args) {
+    const std::string out = dir.file("out.txt");
+    test::run_command(test::program() + " " + args + " > " + out + " 2>&1");
+    std::ifstream in(out);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  // --help shows the main options in groups and points at --help-all for the rest.
+  const std::string help = output_of("decompose --help");
+  CHECK(help.find("Inputs and outputs:") != std::string::npos);
+  CHECK(help.find("--quality") != std::string::npos);
+  CHECK(help.find("--untangle-keep-best") == std::string::npos);
+  CHECK(help.find("--help-all") != std::string::npos);
+  CHECK(std::count(help.begin(), help.end(), '\n') < 50);
+  CHECK(output_of("decompose --help-all").find("--untangle-keep-best") != std::string::npos);
+  // A mistyped option: usage error and the nearest option.
+  CHECK(run("decompose " + muscle + " -o " + dir.file("f.vtk") + " --fibers 36") == 2);
+  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --fibers 36").find("did you mean --fibres?") !=
+        std::string::npos);
+  // Global options after the command.
+  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " -q").empty());
+  // An option error names the option, not the field.
+  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --end-fraction 0.9").find("--end-fraction") !=
+        std::string::npos);
+  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --fibres 3").find("--fibres:") != std::string::npos);
+  // Quality levels set the fibre count and resolution, explicit values win.
+  REQUIRE(run("decompose " + muscle + " -o " + dir.file("d.vtk") + " --quality draft") == 0);
+  const Polylines draft = read_polylines(dir.file("d.vtk"));
+  CHECK(draft.lines.size() == 36);
+  CHECK(draft.lines.front().size() == 9);
+  REQUIRE(run("decompose " + muscle + " -o " + dir.file("e.vtk") + " --quality draft --fibres 49 --resolution 11") == 0);
+  const Polylines explicit_values = read_polylines(dir.file("e.vtk"));
+  CHECK(explicit_values.lines.size() == 49);
+  CHECK(explicit_values.lines.front().size() == 11);
+  CHECK(run("decompose " + muscle + " -o " + dir.file("e.vtk") + " --quality best") == 2);
 }
