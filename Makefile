@@ -1,6 +1,8 @@
 # Fascicle: two commands for a new user on Debian 12.
 #   make demo   installs dependencies, builds, runs the main job on a generated sample
-#   make test   installs dependencies, builds, runs the whole test suite
+#   make test   installs dependencies, builds, runs the unit tests and a fixed sample of corpus
+#               muscles (CTest label unit)
+#   make test-corpus   the corpus tier: every corpus muscle, the [slow] and [stress] cases (label corpus)
 #   make install PREFIX=DIR   builds and installs the program in DIR/bin, its libraries in DIR/lib
 # Reliability (docs/RELIABILITY.md):
 #   make test-sanitize   the test suite built with ASan+UBSan (-O1 -g1) in build-sanitize/ ([slow], [no-sanitize] excluded)
@@ -14,7 +16,7 @@ BUILD_TYPE ?= Release
 DEMO_DIR ?= demo-out
 PREFIX ?= /usr/local
 
-.PHONY: all deps configure build test demo install clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
+.PHONY: all deps configure build test test-corpus demo install clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
 
 SANITIZE_BUILD ?= build-sanitize
 FUZZ_BUILD ?= build-fuzz
@@ -34,7 +36,10 @@ build: configure
 	@cmake --build $(BUILD) -j $(JOBS)
 
 test: build
-	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L unit
+
+test-corpus: build
+	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L corpus
 
 install: build
 	@cmake --install $(BUILD) --prefix $(PREFIX)

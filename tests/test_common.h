@@ -17,9 +17,11 @@
 
 namespace fascicle::test {
 
-/// The shared corpus folder, or "" when absent (a user's clone): tests then skip with a message.
+/// The shared corpus folder (the environment's FASCICLE_DATA_DIR when set, else the one found
+/// at configure time), or "" when absent (a user's clone): tests then skip with a message.
 inline std::string data_dir() {
-  const std::string dir = FASCICLE_DATA_DIR;
+  const char* from_environment = std::getenv("FASCICLE_DATA_DIR");
+  const std::string dir = from_environment != nullptr ? from_environment : FASCICLE_DATA_DIR;
   return std::filesystem::is_directory(dir) ? dir : std::string();
 }
 
