@@ -342,7 +342,7 @@ void add_decompose_command(CLI::App& app) {
                 "Write the fibres even when they fail the check, for inspection (the exit code is still 19)");
   cmd->add_option("--quality", args->quality,
                   "Speed against accuracy: draft (36 fibres x 9 points, tolerance 1e-4), standard (100 x 15, 1e-6) or "
-                  "fine (225 x 21, 1e-7); --fibres, --resolution and --tolerance given explicitly win")
+                  "fine (144 x 19, 1e-7); --fibres, --resolution and --tolerance given explicitly win")
       ->check(CLI::IsMember({"draft", "standard", "fine"}))
       ->capture_default_str();
   args->command = cmd;

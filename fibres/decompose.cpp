@@ -394,7 +394,7 @@ DecomposeOptions with_quality(DecomposeOptions options, Quality quality) {
     int samples;
   };
   const Level level = quality == Quality::draft    ? Level{36, 9, 1e-4, 5000}
-                      : quality == Quality::fine ? Level{225, 21, 1e-7, 40000}
+                      : quality == Quality::fine ? Level{144, 19, 1e-7, 40000}
                                                  : Level{100, 15, 1e-6, 20000};
   options.fibres = level.fibres;
   options.resolution = level.resolution;

@@ -229,7 +229,7 @@ struct DecomposeOptions {
 /// settle's tolerance and the check's coverage samples.
 ///   draft:    36 fibres x 9 points, tolerance 1e-4, 5000 coverage samples
 ///   standard: 100 fibres x 15 points, tolerance 1e-6, 20000 coverage samples (the defaults)
-///   fine:     225 fibres x 21 points, tolerance 1e-7, 40000 coverage samples
+///   fine:     144 fibres x 19 points, tolerance 1e-7, 40000 coverage samples
 enum class Quality { draft, standard, fine };
 /// "draft", "standard", "fine".
 const char* quality_name(Quality quality);

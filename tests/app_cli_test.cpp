@@ -97,7 +97,7 @@ TEST_CASE("repair exit codes: one per kind of bad input", "[app]") {
   }
   SECTION("option out of range -> 18") {
     write_triangle_mesh(dir.file("ball.off"), make_icosphere(2));
-    expect_failure(dir, dir.file("ball.off"), ErrorCode::invalid_option, "weld_tolerance", " --weld-tolerance 5");
+    expect_failure(dir, dir.file("ball.off"), ErrorCode::invalid_option, "--weld-tolerance = 5", " --weld-tolerance 5");
   }
 }
 

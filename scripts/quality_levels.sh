@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# The --quality levels measured on a folder of muscles: for each level, `fascicle batch` with
+# default options and that level (timed), then `fascicle check` (every criterion, default
+# thresholds) on each muscle's fibres; prints one Markdown table row per level.
+# Usage: scripts/quality_levels.sh [FASCICLE [MUSCLES [OUT [LEVELS...]]]]
+#   defaults: build/fascicle, ../shared/data/muscles, /tmp/fascicle-quality, draft standard fine
+set -euo pipefail
+program=$(realpath "${1:-build/fascicle}")
+muscles=$(realpath "${2:-../shared/data/muscles}")
+out=${3:-/tmp/fascicle-quality}
+shift $(( $# < 3 ? $# : 3 ))
+levels=("$@")
+[ ${#levels[@]} -eq 0 ] && levels=(draft standard fine)
+mkdir -p "$out"
+echo "| level | fibres x points | batch, 2 jobs | decompose passes | whole check passes | segments out | turning > 45 deg | ends < 0.25 | median coverage p95 | median turning |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+for level in "${levels[@]}"; do
+  dir="$out/$level"
+  rm -rf "$dir"
+  start=$(date +%s.%N)
+  set +e
+  "$program" -q batch "$muscles" -o "$dir" --jobs 2 --quality "$level" > "$dir.log" 2>&1
+  set -e
+  seconds=$(echo "$(date +%s.%N) - $start" | bc)
+  # The whole check on each result, two at a time.
+  find "$dir" -name '*.vtk' | sort | while read -r fibres; do
+    rel=${fibres#"$dir"/}
+    rel=${rel%.vtk}
+    mesh=$(ls "$muscles/$rel".* 2>/dev/null | grep -v -E '\.(xyz|log|json)$' | head -1)
+    echo "$fibres|$mesh"
+  done | xargs -P 2 -I{} bash -c 'f=${1%%|*}; m=${1#*|}; "$0" -q check "$f" "$m" --json > "$f.check.json" 2>/dev/null || true' "$program" {}
+  python3 - "$dir" "$level" "$seconds" <<'PY'
+import glob, json, statistics, sys
+folder, level, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+checks = []
+for path in sorted(glob.glob(folder + "/**/*.vtk.check.json", recursive=True)):
+    try:
+        checks.append(json.load(open(path)))
+    except ValueError:
+        pass
+reports = []
+for path in sorted(glob.glob(folder + "/**/*.report.json", recursive=True)):
+    try:
+        reports.append(json.load(open(path)))
+    except ValueError:
+        pass
+muscles = len(reports)
+decompose_ok = sum(1 for r in reports if r.get("status") == "ok")
+passed = sum(1 for c in checks if c["pass"])
+segments = sum(1 for c in checks if c["crossing_segments"] > 0)
+turning = sum(1 for c in checks if c["turning"]["max_deg"] > 45)
+ends = sum(1 for c in checks if min(c["ends"]["origin"]["share"], c["ends"]["insertion"]["share"]) < 0.25)
+coverage = statistics.median(c["coverage"]["p95"] for c in checks) if checks else float("nan")
+turn = statistics.median(c["turning"]["max_deg"] for c in checks) if checks else float("nan")
+shape = "%d x %d" % (checks[0]["fibres"], checks[0]["points"] // checks[0]["fibres"]) if checks else "-"
+print("| %s | %s | %.0f s | %d of %d | %d of %d | %d | %d | %d | %.2f | %.0f deg |" %
+      (level, shape, seconds, decompose_ok, muscles, passed, len(checks), segments, turning, ends, coverage, turn))
+PY
+done
