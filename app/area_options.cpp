@@ -1,4 +1,5 @@
 #include "app/commands.h"
+#include "fibres/architecture.h"
 #include "morph/attachments.h"
 
 #include <algorithm>
@@ -41,6 +42,19 @@ void add_automatic_area_options(CLI::App* cmd, AttachmentOptions& options) {
   cmd->add_option("--max-end-fraction", options.max_end_fraction,
                   "Automatic areas: widest band --connected-ends may take, as a share of the length")
       ->capture_default_str();
+}
+
+void add_architecture_options(CLI::App* cmd, ArchitectureOptions& options) {
+  cmd->add_option_function<std::string>(
+         "--length-unit",
+         [&options](const std::string& unit) {
+           options.metres_per_unit = unit == "m" ? 1.0 : unit == "cm" ? 0.01 : 0.001;
+         },
+         "Unit of the mesh's coordinates for the architecture figures: mm (default), cm or m")
+      ->check(CLI::IsMember({"mm", "cm", "m"}));
+  cmd->add_option_function<double>(
+      "--specific-tension", [&options](double n_per_cm2) { options.specific_tension = n_per_cm2 * 1e4; },
+      "Specific tension for the maximum isometric force, N/cm^2 (default 61, Arnold et al. 2010)");
 }
 
 }  // namespace fascicle::app

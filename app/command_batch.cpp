@@ -16,6 +16,7 @@
 #include <sys/wait.h>
 
 #include <csignal>
+#include <cmath>
 
 #include <algorithm>
 #include <atomic>
@@ -57,6 +58,8 @@ struct Outcome {
   double inside_fraction = std::numeric_limits<double>::quiet_NaN(), coverage_p95 = inside_fraction,
          attachment = inside_fraction, segment_excursion = inside_fraction, layer_ratio = inside_fraction;
   long inverted_cells = -1, crossing_segments = -1;
+  double fibre_length_m = std::numeric_limits<double>::quiet_NaN(), pennation_deg = fibre_length_m,
+         pcsa_cm2 = fibre_length_m, max_force_n = fibre_length_m;
   bool skipped = false;
 };
 
@@ -166,6 +169,13 @@ void read_outcome(const std::string& report_path, Outcome& o) {
       if (q.contains("steps")) o.layer_ratio = q["steps"].value("layer_ratio", o.layer_ratio);
     }
     if (r.contains("seconds") && r["seconds"].is_object()) o.seconds = r["seconds"].value("total", o.seconds);
+    if (r.contains("architecture") && r["architecture"].is_object()) {
+      const auto& a = r["architecture"];
+      if (a.contains("fibre_length_m")) o.fibre_length_m = a["fibre_length_m"].value("mean", o.fibre_length_m);
+      if (a.contains("pennation_deg")) o.pennation_deg = a["pennation_deg"].value("mean", o.pennation_deg);
+      o.pcsa_cm2 = a.value("pcsa_cm2", o.pcsa_cm2);
+      o.max_force_n = a.value("max_isometric_force_n", o.max_force_n);
+    }
   } catch (const std::exception&) {
     o.status = "failed";
     o.error = "unreadable report";
@@ -183,15 +193,15 @@ void write_summary(const std::string& path, const std::vector<Muscle>& muscles, 
   write_file_atomically(path, [&](std::ostream& out) {
     out << std::setprecision(std::numeric_limits<double>::max_digits10);
     out << "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,crossing_segments,"
-           "segment_excursion,layer_ratio,error\n";
+           "segment_excursion,layer_ratio,fibre_length_m,pennation_deg,pcsa_cm2,max_isometric_force_n,error\n";
     for (std::size_t i = 0; i < muscles.size(); ++i) {
       const Outcome& o = outcomes[i];
       char seconds[32];
       std::snprintf(seconds, sizeof(seconds), "%.3f", o.seconds);
       out << csv_field(muscles[i].name) << ',' << o.status << ',' << o.exit_code << ',' << seconds << ','
           << o.inside_fraction << ',' << o.inverted_cells << ',' << o.coverage_p95 << ',' << o.attachment << ','
-          << o.crossing_segments << ',' << o.segment_excursion << ',' << o.layer_ratio << ',' << csv_field(o.error)
-          << '\n';
+          << o.crossing_segments << ',' << o.segment_excursion << ',' << o.layer_ratio << ',' << o.fibre_length_m << ','
+          << o.pennation_deg << ',' << o.pcsa_cm2 << ',' << o.max_force_n << ',' << csv_field(o.error) << '\n';
     }
   });
 }
@@ -253,6 +263,22 @@ std::string recorded_fingerprint(const std::string& report_path, Outcome& o) {
   } catch (const std::exception&) {
     return "";
   }
+}
+
+// The OpenSim muscle parameters of every muscle that passed, as the Thelen 2003 and Millard 2012
+// muscle models name them: optimal fibre length (m), pennation angle at optimal length (rad),
+// maximum isometric force (N), from the fibres as decomposed (their lengths taken as optimal).
+void write_opensim(const std::string& path, const std::vector<Muscle>& muscles, const std::vector<Outcome>& outcomes) {
+  write_file_atomically(path, [&](std::ostream& out) {
+    out << std::setprecision(std::numeric_limits<double>::max_digits10);
+    out << "muscle,optimal_fiber_length,pennation_angle_at_optimal,max_isometric_force\n";
+    for (std::size_t i = 0; i < muscles.size(); ++i) {
+      const Outcome& o = outcomes[i];
+      if (o.status != "ok" || !std::isfinite(o.fibre_length_m)) continue;
+      out << csv_field(muscles[i].name) << ',' << o.fibre_length_m << ',' << o.pennation_deg * 3.14159265358979323846 / 180.0
+          << ',' << o.max_force_n << '\n';
+    }
+  });
 }
 
 std::string self_path() {
@@ -402,6 +428,7 @@ void run_batch(const BatchArgs& args) {
   for (int t = 0; t < args.jobs; ++t) threads.emplace_back(worker);
   for (std::thread& t : threads) t.join();
   if (tty) std::fprintf(stderr, "\n");
+  write_opensim((fs::path(args.output) / "opensim.csv").string(), muscles, outcomes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   spdlog::info("batch: {} muscles, {} ok, {} failed, {} skipped (already done with these options){} in {:.1f} s; "
                "summary in {}",
@@ -455,7 +482,7 @@ void add_batch_command(CLI::App& app) {
     const std::string name = option->get_name();
     if (option->get_positional() || name == "--help" || name == "-h,--help" || name == "--output" || name == "-o,--output" ||
         name == "--report" || name == "--write-repaired" || name == "--origin" || name == "--insertion" ||
-        name == "--keep-failed" || name == "--check-options")
+        name == "--keep-failed" || name == "--check-options" || name == "--architecture")
       continue;
     const std::string flag = option->get_lnames().empty() ? name : "--" + option->get_lnames().front();
     auto seen = std::make_shared<bool>(false);

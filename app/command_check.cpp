@@ -6,6 +6,7 @@
 
 #include "app/commands.h"
 #include "app/report_file.h"
+#include "fibres/architecture.h"
 #include "fibres/fibre_check.h"
 #include "fibres/landmark_strip.h"
 #include "geometry/atomic_file.h"
@@ -26,7 +27,8 @@ namespace fascicle::app {
 namespace {
 
 struct CheckArgs {
-  std::string fibres, muscle, origin, insertion, report;
+  std::string fibres, muscle, origin, insertion, report, architecture;
+  ArchitectureOptions architecture_options;
   bool json = false, strict = false, summary = false;
   CheckOptions options;
   AttachmentOptions attachments;
@@ -51,9 +53,18 @@ void run_check(const CheckArgs& args) {
   args.strip.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
+  args.architecture_options.validate();
   if (!args.report.empty()) {
     check_not_same_file(args.fibres, args.report);
     check_not_same_file(args.muscle, args.report);
+    check_output_path(args.report);
+  }
+  if (!args.architecture.empty()) {
+    check_output_path(args.architecture);
+    const std::string ext = lower_extension(args.architecture);
+    if (ext != "json" && ext != "csv")
+      throw InputError(ErrorCode::unknown_format, args.architecture + ": cannot write the architecture as '" + ext +
+                                                      "' (use .json or .csv)");
   }
   const Polylines fibres = read_polylines(args.fibres);
   spdlog::info("read {}: {} fibres", args.fibres, fibres.lines.size());
@@ -79,11 +90,13 @@ void run_check(const CheckArgs& args) {
   nlohmann::json strip_report;
   if (!args.origin.empty()) strip_report = join_landmark_strips(areas, query, muscle_length(muscle), args.strip);
   const CheckReport report = check_fibres(fibres, muscle, query, areas, args.options);
+  const Architecture architecture = measure_architecture(fibres, muscle, areas, args.architecture_options);
 
   nlohmann::json json = report.to_json();
   json["fibres_file"] = args.fibres;
   json["muscle_file"] = args.muscle;
   json["muscle_repaired"] = repaired;
+  json["architecture"] = architecture.to_json();
   json["areas"] = {{"origin", areas.origin.source},
                    {"insertion", areas.insertion.source},
                    {"automatic", areas.automatic},
@@ -92,6 +105,7 @@ void run_check(const CheckArgs& args) {
                    {"insertion_area", areas.insertion.to_json()}};
   if (!strip_report.is_null()) json["areas"]["strip"] = strip_report;
   if (!args.report.empty()) write_json_report(args.report, json);
+  if (!args.architecture.empty()) write_architecture(args.architecture, architecture);
   if (args.json) {
     const std::string text = json.dump(2);
     std::printf("%s\n", text.c_str());
@@ -99,6 +113,11 @@ void run_check(const CheckArgs& args) {
     std::printf("%s\n", report.summary().c_str());
   } else {
     std::printf("%s", report.to_table().c_str());
+    std::printf("architecture: fibre length %.4g mm (sd %.3g), muscle length %.4g mm, pennation %.3g deg (sd %.3g), "
+                "PCSA %.4g cm^2, maximum isometric force %.4g N\n",
+                architecture.fibre_length_m.mean * 1e3, architecture.fibre_length_m.sd * 1e3,
+                architecture.muscle_length_m * 1e3, architecture.pennation_deg.mean, architecture.pennation_deg.sd,
+                architecture.pcsa_m2 * 1e4, architecture.max_isometric_force_n);
   }
   std::fflush(stdout);
   if (args.strict && !report.pass) {
@@ -120,6 +139,9 @@ void add_check_command(CLI::App& app) {
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_flag("--json", args->json, "Print the JSON report to stdout instead of the table");
   cmd->add_option("--report", args->report, "Write the JSON report to this file");
+  cmd->add_option("--architecture", args->architecture,
+                  "Write the fibres' architecture (lengths, pennation, PCSA, force) to this file (.json or .csv)");
+  add_architecture_options(cmd, args->architecture_options);
   cmd->add_flag("--strict", args->strict, "Exit with code 19 when a criterion fails");
   cmd->add_flag("--summary", args->summary, "Print the one-line verdict (each criterion, its value and threshold) instead of the table");
   cmd->add_option("--samples", args->options.coverage_samples, "Volume samples for the coverage figures")

@@ -26,7 +26,7 @@ namespace fascicle::app {
 namespace {
 
 struct DecomposeArgs {
-  std::string input, output, report, origin, insertion, repaired_output;
+  std::string input, output, report, origin, insertion, repaired_output, architecture;
   std::string rest = "tension", quality = "standard";
   const CLI::App* command = nullptr;  // for which options were given explicitly
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
@@ -82,6 +82,14 @@ void run_decompose(const DecomposeArgs& args) {
     check_not_same_file(args.input, args.report);
     check_output_path(args.report);
   }
+  if (!args.architecture.empty()) {
+    check_not_same_file(args.input, args.architecture);
+    check_output_path(args.architecture);
+    const std::string ext = lower_extension(args.architecture);
+    if (ext != "json" && ext != "csv")
+      throw InputError(ErrorCode::unknown_format, args.architecture + ": cannot write the architecture as '" + ext +
+                                                      "' (use .json or .csv)");
+  }
   if (!args.repaired_output.empty()) {
     check_not_same_file(args.input, args.repaired_output);
     check_output_path(args.repaired_output);
@@ -133,6 +141,8 @@ void run_decompose(const DecomposeArgs& args) {
       if (!args.repaired_output.empty())
         outputs.stage(args.repaired_output, [&](const std::string& path) { write_triangle_mesh(path, result.muscle); });
     }
+    if (write_fibres && !args.architecture.empty())
+      outputs.stage(args.architecture, [&](const std::string& path) { write_architecture(path, r.architecture); });
     if (!args.report.empty()) outputs.stage(args.report, [&](const std::string& path) { write_json_report(path, report); });
     outputs.commit();
     const std::string kept = r.attempts.size() > 1 ? "; try " + std::to_string(r.kept_attempt + 1) + " of " +
@@ -165,6 +175,9 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("-o,--output", args->output, "Fibres: .vtk, .vtp, .vtu, .obj (polylines) or .csv")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (every stage, quality)");
   cmd->add_option("--write-repaired", args->repaired_output, "Also write the repaired muscle (off, obj, stl, ply, vtk)");
+  cmd->add_option("--architecture", args->architecture,
+                  "Also write the fibres' architecture (lengths, pennation, PCSA, force) (.json or .csv)");
+  add_architecture_options(cmd, o.architecture);
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_option("--template", args->kind, "Fibre template: parallel, pennate, curved, fanned, rectus")
@@ -347,9 +360,10 @@ void add_decompose_command(CLI::App& app) {
       ->capture_default_str();
   args->command = cmd;
   group_options(cmd,
-                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--keep-failed", "--check-options"}},
+                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--architecture", "--keep-failed",
+                                         "--check-options"}},
                  {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
-                 {"Template and fibres", {"--template", "--fibres", "--resolution"}},
+                 {"Template and fibres", {"--template", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
                  {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
                 "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
   cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");

@@ -11,6 +11,7 @@
 
 namespace fascicle {
 struct AttachmentOptions;
+struct ArchitectureOptions;
 }
 
 namespace fascicle::app {
@@ -29,6 +30,10 @@ void group_options(CLI::App* cmd, const std::vector<std::pair<std::string, std::
 /// The automatic attachment areas' options (--end-fraction, --connected-ends, --connect-margin,
 /// --max-end-fraction), one definition for decompose, check and sphere.
 void add_automatic_area_options(CLI::App* cmd, AttachmentOptions& options);
+
+/// The architecture's options (--length-unit mm|cm|m, --specific-tension N/cm^2), one definition
+/// for decompose and check; they write `options` when parsed.
+void add_architecture_options(CLI::App* cmd, ArchitectureOptions& options);
 
 void add_sample_command(CLI::App& app);   // fascicle sample
 void add_repair_command(CLI::App& app);   // fascicle repair

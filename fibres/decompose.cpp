@@ -413,6 +413,7 @@ CheckOptions DecomposeOptions::default_check() {
 
 void DecomposeOptions::validate() const {
   repair.validate();
+  architecture.validate();
   sphere.validate();
   attachments.validate();
   strip.validate();
@@ -477,6 +478,7 @@ nlohmann::json DecomposeReport::to_json() const {
   j["untangle"] = untangle;
   j["smoothing"] = smoothing;
   j["quality"] = quality.to_json();
+  j["architecture"] = architecture.to_json();
   j["attempts"] = attempts;
   j["kept_attempt"] = kept_attempt;
   j["renderer"] = renderer;
@@ -851,6 +853,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
     }
   }
+  report.architecture = measure_architecture(out.fibres, muscle, checked_against, options.architecture);
   report.check_seconds = since(stage);
   report.status = report.quality.pass ? "ok" : "failed";
   if (!report.quality.pass) report.failure = "the fibres fail the quality check";

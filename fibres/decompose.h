@@ -36,6 +36,7 @@
 ///     attachment distances (and the segments that leave the muscle, reported).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
+#include "fibres/architecture.h"
 #include "fibres/contain_segments.h"
 #include "fibres/fibre_check.h"
 #include "fibres/landmark_strip.h"
@@ -145,6 +146,9 @@ struct DecomposeOptions {
   SegmentContainmentOptions segments;
   int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
   double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
+  /// Units and specific tension of the architecture figures (fibres/architecture.h; default mm,
+  /// 61 N/cm^2).
+  ArchitectureOptions architecture;
   /// The final check (default_check()): the criteria of fibres/fibre_check.h with the segments,
   /// turning and ends figures reported but not judged.
   CheckOptions check = default_check();
@@ -251,6 +255,7 @@ struct DecomposeReport {
   std::string failure;      ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
   CheckReport quality;
+  Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)
   /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
   /// seconds), in order, and which was kept (DecomposeOptions::landmark_twists_deg).
   nlohmann::json attempts = nlohmann::json::array();

@@ -198,3 +198,34 @@ TEST_CASE("help, suggestions, global options anywhere, errors that name the opti
   CHECK(explicit_values.lines.front().size() == 11);
   CHECK(run("decompose " + muscle + " -o " + dir.file("e.vtk") + " --quality best") == 2);
 }
+
+TEST_CASE("architecture from check, decompose and batch, and an OpenSim table over a batch", "[app][architecture]") {
+  test::TempDir dir;
+  const fs::path in = dir.path() / "in";
+  fs::create_directories(in);
+  write_triangle_mesh((in / "a.off").string(), capsule());
+  const std::string muscle = (in / "a.off").string();
+  REQUIRE(run("decompose " + muscle + " -o " + dir.file("f.vtk") + " --architecture " + dir.file("a.json") +
+              " --report " + dir.file("r.json")) == 0);
+  const nlohmann::json arch = read_json(dir.file("a.json"));
+  // The capsule's fibres run along it: pennation near 0, fibres about as long as the muscle.
+  CHECK(arch.at("pennation_deg").at("mean").get<double>() < 5.0);
+  CHECK(arch.at("fibre_to_muscle_length").get<double>() > 0.8);
+  CHECK(arch.at("fibre_to_muscle_length").get<double>() < 1.2);
+  CHECK(read_json(dir.file("r.json")).at("architecture") == arch);
+  // check measures the same fibres the same way; --length-unit m scales the lengths.
+  REQUIRE(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("b.csv")) == 0);
+  CHECK(test::read_text(dir.file("b.csv")).rfind("fibres,volume_m3,", 0) == 0);
+  REQUIRE(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("m.json") + " --length-unit m") == 0);
+  CHECK(read_json(dir.file("m.json")).at("muscle_length_m").get<double>() ==
+        Approx(1000.0 * arch.at("muscle_length_m").get<double>()));
+  CHECK(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("a.txt")) == 5);
+  // A batch: the summary's architecture columns and opensim.csv in metres, radians and newtons.
+  const fs::path out = dir.path() / "out";
+  REQUIRE(run("batch " + in.string() + " -o " + out.string()) == 0);
+  const auto row = summary_row(out / "summary.csv", "a");
+  REQUIRE(row.size() >= 15);
+  CHECK(std::stod(row[11]) == Approx(arch.at("fibre_length_m").at("mean").get<double>()));
+  const std::string opensim = test::read_text((out / "opensim.csv").string());
+  CHECK(opensim.rfind("muscle,optimal_fiber_length,pennation_angle_at_optimal,max_isometric_force\na,", 0) == 0);
+}

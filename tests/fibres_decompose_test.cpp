@@ -790,7 +790,7 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   std::getline(summary, b);
   CHECK(header ==
         "muscle,status,exit_code,seconds,inside_fraction,inverted_cells,coverage_p95,attachment,crossing_segments,"
-        "segment_excursion,layer_ratio,error");
+        "segment_excursion,layer_ratio,fibre_length_m,pennation_deg,pcsa_cm2,max_isometric_force_n,error");
   CHECK(a.rfind("capsule,", 0) == 0);
   {
     // The segment figures of the report's quality section: a count and a fraction of the length.
