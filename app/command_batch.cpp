@@ -482,7 +482,7 @@ void add_batch_command(CLI::App& app) {
     const std::string name = option->get_name();
     if (option->get_positional() || name == "--help" || name == "-h,--help" || name == "--output" || name == "-o,--output" ||
         name == "--report" || name == "--write-repaired" || name == "--origin" || name == "--insertion" ||
-        name == "--keep-failed" || name == "--check-options" || name == "--architecture")
+        name == "--keep-failed" || name == "--check-options" || name == "--architecture" || name == "--fe-mesh")
       continue;
     const std::string flag = option->get_lnames().empty() ? name : "--" + option->get_lnames().front();
     auto seen = std::make_shared<bool>(false);

@@ -5,6 +5,9 @@
 #include "app/commands.h"
 #include "app/report_file.h"
 #include "fibres/decompose.h"
+#include "fibres/fibre_field.h"
+#include "repair/tetrahedralize.h"
+#include "geometry/mesh_stats.h"
 #include "geometry/atomic_file.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
@@ -26,7 +29,8 @@ namespace fascicle::app {
 namespace {
 
 struct DecomposeArgs {
-  std::string input, output, report, origin, insertion, repaired_output, architecture;
+  std::string input, output, report, origin, insertion, repaired_output, architecture, fe_mesh;
+  long fe_cells = 20000;
   std::string rest = "tension", quality = "standard";
   const CLI::App* command = nullptr;  // for which options were given explicitly
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
@@ -81,6 +85,14 @@ void run_decompose(const DecomposeArgs& args) {
   if (!args.report.empty()) {
     check_not_same_file(args.input, args.report);
     check_output_path(args.report);
+  }
+  if (!args.fe_mesh.empty()) {
+    check_not_same_file(args.input, args.fe_mesh);
+    check_output_path(args.fe_mesh);
+    if (lower_extension(args.fe_mesh) != "vtu")
+      throw InputError(ErrorCode::unknown_format, args.fe_mesh + ": the finite-element mesh is written as .vtu");
+    if (args.fe_cells < 100 || args.fe_cells > 10'000'000)
+      throw OptionError("--fe-cells: must be in 100..10000000, got " + std::to_string(args.fe_cells));
   }
   if (!args.architecture.empty()) {
     check_not_same_file(args.input, args.architecture);
@@ -141,6 +153,14 @@ void run_decompose(const DecomposeArgs& args) {
       if (!args.repaired_output.empty())
         outputs.stage(args.repaired_output, [&](const std::string& path) { write_triangle_mesh(path, result.muscle); });
     }
+    if (write_fibres && !args.fe_mesh.empty()) {
+      // The muscle's volume as tetrahedra, each with the direction of its nearest fibre.
+      TetrahedralizeReport made;
+      const TetMesh tets = tetrahedralize(result.muscle, sized_tetrahedra(signed_volume(result.muscle), args.fe_cells), &made);
+      const std::vector<Vec3> directions = cell_fibre_directions(tets, result.fibres);
+      report["fe_mesh"] = made.to_json();
+      outputs.stage(args.fe_mesh, [&](const std::string& path) { write_tetrahedra(path, tets, "fibre_direction", directions); });
+    }
     if (write_fibres && !args.architecture.empty())
       outputs.stage(args.architecture, [&](const std::string& path) { write_architecture(path, r.architecture); });
     if (!args.report.empty()) outputs.stage(args.report, [&](const std::string& path) { write_json_report(path, report); });
@@ -178,6 +198,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--architecture", args->architecture,
                   "Also write the fibres' architecture (lengths, pennation, PCSA, force) (.json or .csv)");
   add_architecture_options(cmd, o.architecture);
+  cmd->add_option("--fe-mesh", args->fe_mesh,
+                  "Also write a tetrahedral mesh of the muscle (CGAL 3D mesh generation) with a unit fibre direction "
+                  "per cell, for finite-element models (.vtu)");
+  cmd->add_option("--fe-cells", args->fe_cells, "About this many tetrahedra in --fe-mesh")->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_option("--template", args->kind, "Fibre template: parallel, pennate, curved, fanned, rectus")
@@ -360,8 +384,8 @@ void add_decompose_command(CLI::App& app) {
       ->capture_default_str();
   args->command = cmd;
   group_options(cmd,
-                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--architecture", "--keep-failed",
-                                         "--check-options"}},
+                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh",
+                                         "--keep-failed", "--check-options"}},
                  {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
                  {"Template and fibres", {"--template", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
                  {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},

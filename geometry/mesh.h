@@ -37,6 +37,17 @@ struct TriangleMesh {
   std::vector<Triangle> triangles;
 };
 
+/// Four vertex indices of a tetrahedron, positively oriented: (b - a) x (c - a) . (d - a) > 0.
+using Tetrahedron = std::array<int, 4>;
+
+/// A tetrahedral mesh of a closed surface's volume: #V positions (the surface's units), #T
+/// positively oriented tetrahedra, and #V flags, 1 for the vertices that lie on the surface.
+struct TetMesh {
+  std::vector<Vec3> positions;
+  std::vector<Tetrahedron> tets;
+  std::vector<char> boundary;
+};
+
 /// A named per-line (cell) data array attached to a set of polylines, one value per line.
 struct CellArray {
   std::string name;

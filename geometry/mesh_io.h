@@ -93,6 +93,14 @@ Polylines read_polylines(const std::string& path, const ReadOptions& options = {
 /// index is out of range or a position is not finite.
 void write_triangle_mesh(const std::string& path, const TriangleMesh& mesh);
 
+/// Writes a tetrahedral mesh to `path` as VTK XML UnstructuredGrid (.vtu, ASCII): Float64 points
+/// (max_digits10), tetra cells (VTK type 10), and the per-cell 3-vector array `name` holding
+/// `cell_vectors` (#T) when it is not empty; readable by VTK and meshio. Throws
+/// InputError(unknown_format) for another extension, IoError when it cannot be written,
+/// Error(internal) when an array does not hold one vector per tetrahedron or a value is not finite.
+void write_tetrahedra(const std::string& path, const TetMesh& mesh, const std::string& name = {},
+                      const std::vector<Vec3>& cell_vectors = {});
+
 /// Writes polylines to `path`, atomically, all coordinates with max_digits10 (exact round trip):
 /// - .vtk: legacy ASCII POLYDATA: POINTS double, LINES, and CELL_DATA with one FIELD block
 ///   holding every cell_data entry as a one-component array (blanks in names become '_'), so

@@ -61,6 +61,8 @@ TEST_CASE("decompose checks every output before the work and leaves no file of a
   CHECK(run("decompose " + bogus + " -o " + dir.path().string()) == 11);  // a folder
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --report " + dir.file("missing/r.json")) == 11);
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --write-repaired " + dir.file("m.xyz")) == 5);
+  CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --fe-mesh " + dir.file("t.vtk")) == 5);
+  CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --fe-mesh " + dir.file("t.vtu") + " --fe-cells 5") == 18);
   // A bad fibre extension with a good repaired-mesh path: neither file appears.
   CHECK(run("decompose " + muscle + " -o " + dir.file("f.xyz") + " --write-repaired " + dir.file("m.off")) == 5);
   CHECK_FALSE(fs::exists(dir.file("m.off")));
@@ -72,10 +74,13 @@ TEST_CASE("decompose checks every output before the work and leaves no file of a
   CHECK_FALSE(fs::exists(dir.file("f.vtk")));
   // A run that succeeds writes all its outputs, and nothing temporary remains.
   REQUIRE(run("decompose " + muscle + " -o " + dir.file("f.vtu") + " --write-repaired " + dir.file("m.ply") +
-              " --report " + dir.file("r.json")) == 0);
+              " --report " + dir.file("r.json") + " --fe-mesh " + dir.file("t.vtu") + " --fe-cells 2000") == 0);
   CHECK(read_polylines(dir.file("f.vtu")).lines.size() == 100);
   CHECK(fs::exists(dir.file("m.ply")));
-  CHECK(read_json(dir.file("r.json"))["status"] == "ok");
+  const nlohmann::json report = read_json(dir.file("r.json"));
+  CHECK(report["status"] == "ok");
+  CHECK(report["fe_mesh"]["tets"].get<long>() > 1000);
+  CHECK(fs::file_size(dir.file("t.vtu")) > 0);
   for (const auto& e : fs::directory_iterator(dir.path()))
     CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
 }

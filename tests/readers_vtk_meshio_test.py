@@ -41,7 +41,9 @@ with tempfile.TemporaryDirectory() as folder:
     fibres = {}
     for ext in ("vtk", "vtp", "vtu", "obj", "csv"):
         fibres[ext] = os.path.join(folder, "fibres." + ext)
-    run("decompose", sample, "-o", fibres["vtk"], "--fibres", "36", "--resolution", "9", "--write-repaired", repaired)
+    fe_mesh = os.path.join(folder, "muscle_fe.vtu")
+    run("decompose", sample, "-o", fibres["vtk"], "--fibres", "36", "--resolution", "9", "--write-repaired", repaired,
+        "--fe-mesh", fe_mesh, "--fe-cells", "3000")
     for ext in ("vtp", "vtu", "obj", "csv"):
         run("convert", fibres["vtk"], "-o", fibres[ext])
     lines, points = 36, 36 * 9
@@ -125,6 +127,35 @@ with tempfile.TemporaryDirectory() as folder:
     reader.SetFileName(os.path.join(folder, "muscle.vtk"))
     reader.Update()
     check(reader.GetOutput().GetNumberOfCells() > 0, "vtkDataSetReader on muscle.vtk: triangles")
+
+    # The finite-element mesh: tetrahedra with a unit fibre direction per cell, in VTK and meshio.
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    reader.SetFileName(fe_mesh)
+    reader.Update()
+    grid = reader.GetOutput()
+    tets = grid.GetNumberOfCells()
+    check(tets > 1000, "vtkXMLUnstructuredGridReader on muscle_fe.vtu: %d tetrahedra" % tets)
+    check(all(grid.GetCellType(i) == vtk.VTK_TETRA for i in range(tets)), "muscle_fe.vtu: every cell a tetrahedron")
+    direction = grid.GetCellData().GetArray("fibre_direction")
+    check(direction is not None and direction.GetNumberOfComponents() == 3 and direction.GetNumberOfTuples() == tets,
+          "muscle_fe.vtu: fibre_direction has three components per cell (VTK)")
+    if direction is not None:
+        norms = [numpy.linalg.norm(direction.GetTuple3(i)) for i in range(direction.GetNumberOfTuples())]
+        check(max(abs(n - 1.0) for n in norms) < 1e-9, "muscle_fe.vtu: every fibre direction is a unit vector")
+    volume = vtk.vtkMeshQuality()
+    volume.SetInputData(grid)
+    volume.SetTetQualityMeasureToVolume()
+    volume.Update()
+    quality = volume.GetOutput().GetCellData().GetArray("Quality")
+    check(quality is not None and min(quality.GetValue(i) for i in range(tets)) > 0.0,
+          "muscle_fe.vtu: every tetrahedron has a positive volume")
+    fe = meshio.read(fe_mesh)
+    blocks = [block for block in fe.cells if block.type == "tetra"]
+    check(sum(len(block.data) for block in blocks) == tets, "meshio on muscle_fe.vtu: %d tetrahedra" % tets)
+    check("fibre_direction" in fe.cell_data, "meshio on muscle_fe.vtu: cell data fibre_direction")
+    if "fibre_direction" in fe.cell_data:
+        values = numpy.concatenate(fe.cell_data["fibre_direction"])
+        check(values.shape == (tets, 3), "meshio on muscle_fe.vtu: fibre_direction is %d x 3" % tets)
 
 if failures:
     print("%d check(s) failed" % len(failures))
