@@ -34,24 +34,16 @@ namespace fascicle {
 
 /// Options of contain_segments().
 struct SegmentContainmentOptions {
-  /// Passes over all fibres; a pass that keeps no move ends the work (default 4).
-  int sweeps = 4;
-  /// How far inside the deepest sample of a segment is moved, as a fraction of how far outside it
-  /// was (default 0.25; a margin of a quarter of a local spacing instead kept 1 move of 18 on the
-  /// LHDL gluteus maximus: the shifted points crossed their neighbours, folding cells).
+  int sweeps = 4;           ///< passes over all fibres; a pass that keeps no move ends the work (default 4)
+  /// How far inside the deepest sample is moved, as a share of how far outside it was (default 0.25:
+  /// relative to the excursion, not the spacing, so shifted points do not cross their neighbours).
   double margin = 0.25;
-  /// Samples along a segment for its deepest excursion (default 16).
-  int samples = 16;
-  /// Shifts of one move: after each, the moved segment's deepest sample outside (if any) is
-  /// shifted in turn (default 4).
-  int steps = 4;
-  /// A shift longer than this many local spacings (the mean length of the springs at the
-  /// segment's points) is not tried (default 3): such a segment cuts a bend too deep for a
-  /// local move.
+  int samples = 16;         ///< samples along a segment for its deepest excursion (default 16)
+  int steps = 4;            ///< shifts of one move, each from the deepest sample still outside (default 4)
+  /// Longest shift tried, in local spacings (mean spring length at the segment's points) (default 3:
+  /// a segment that needs more cuts a bend too deep for a local move).
   double max_shift = 3.0;
-  /// Largest patch of lines moved together (Chebyshev radius in lines round the segment's own;
-  /// 0: the line alone; default 3).
-  int patch_radius = 3;
+  int patch_radius = 3;     ///< patch of lines moved together, Chebyshev radius, 0 = alone (default 3)
 
   /// Throws OptionError naming the first field out of range (sweeps < 0, margin not in (0, 10],
   /// samples < 1, steps < 1, max_shift not > 0, patch_radius < 0).

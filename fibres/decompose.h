@@ -74,8 +74,8 @@ struct DecomposeOptions {
   RepairOptions repair;             ///< repair stage (defaults: repair/repair.h)
   SphereMapOptions sphere;          ///< muscle sphere map (default tutte)
   AttachmentOptions attachments;    ///< landmark tolerance, automatic end fraction
-  /// Landmark areas joined into gapless strips along their spanning tree before the placement,
-  /// the cast and the check (fibres/landmark_strip.h; default on, longest join 0.1 of the length).
+  /// Landmark areas joined into gapless strips before the placement, the cast and the check
+  /// (fibres/landmark_strip.h; default on, longest join 0.1 of the length).
   StripOptions strip;
   PlacementOptions placement;       ///< regions and alignment on the sphere
   springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
@@ -83,64 +83,38 @@ struct DecomposeOptions {
   int resolution = 15;              ///< points per fibre, >= 2 (default 15)
   springs::SpringModel model = springs::SpringModel::model6;  ///< springs (default model-6)
   RestShape rest = RestShape::tension;  ///< spring rest lengths in the settle (default tension)
-  /// The first settle (zero rest lengths: the harmonic interpolation of the placed surface) is
-  /// one sparse Cholesky solve on lattices of at most this many points, and a geometric-multigrid
-  /// solve (springs/multigrid.h) on larger ones, >= 0 (default 8192). The factor's fill grows
-  /// about as the square of a 3D lattice's points: 4 ms at the default 2160 points, 4.1 s at
-  /// 1000 fibres x 30 points (34 020), while the multigrid's cost grows linearly
-  /// (docs/BENCHMARKS.md, "Decompose", eighteenth session).
+  /// Largest lattice whose first (harmonic) settle is one sparse Cholesky solve, >= 0 (default 8192);
+  /// larger ones use multigrid (springs/multigrid.h): the factor's fill grows about as points^2.
   long harmonic_direct_points = 8192;
-  /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000
-  /// iterations).
+  /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000 iterations).
   springs::SettleOptions settle = default_settle();
-  /// Compute backend of the settles: "cpu", "gl" (OpenGL compute shaders in float32: Verlet, or
-  /// the static solver as its momentum method; a solve that float32 stops short of its
-  /// tolerance is finished on the CPU in double, shaders::GpuSettleOptions::polish, always on
-  /// here) or "auto" (the CPU: a decomposition's lattice is too small for the GPU to pay off,
-  /// docs/decompose.md step 5) (default cpu).
+  /// Settle backend (default cpu): "cpu", "gl" (float32 compute shaders, finished on the CPU in double
+  /// when short of the tolerance) or "auto" (the CPU: a decomposition's lattice is too small for the GPU).
   std::string backend = "cpu";
-  int cast_rounds = 2;          ///< rounds of "fibre ends cast onto the surface under the layer
-                                ///< next to them, settle again" (step 6b), >= 0 (default 2;
-                                ///< 0: the ends stay where the sphere maps place them)
-  /// Cast the rim of each attachment face (its surface-ring points) with its fibre ends, from
-  /// the same layer or fit one index step beyond them (default true; false: the rim stays where
-  /// the placement put it, which next to a narrow end can lie inside the cast ends).
+  int cast_rounds = 2;          ///< rounds of "cast the fibre ends under the next layer, settle again"
+                                ///< (step 6), >= 0 (default 2; 0: ends stay where the sphere maps put them)
+  /// Cast each attachment face's rim (surface-ring points) with its fibre ends (default true;
+  /// false: the rim stays where placed, which next to a narrow end can lie inside the cast ends).
   bool cast_rim = true;
-  int soft_contact_rounds = 3;  ///< of the containment rounds, the first ones anchor outside points
-                                ///< by zero-length springs to targets just inside (4x stiffer each
-                                ///< round) instead of fixing them, >= 0 (default 3)
+  int soft_contact_rounds = 3;  ///< first containment rounds that anchor outside points by springs
+                                ///< (4x stiffer each round) instead of fixing them, >= 0 (default 3)
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
-  double contact_depth = 0.3;   ///< depth of a contact point below the surface, in local lattice
-                                ///< spacings, (0, 1) (default 0.3)
-  /// A point only just outside goes only this deep (three times its distance outside, clamped to
-  /// [contact_depth_min, contact_depth]), in local spacings, (0, contact_depth] (default 0.3 =
-  /// contact_depth: always contact_depth; the second try of a failed decomposition uses 0.05,
-  /// retry_alternative: a deep target for a point a hair outside can push it past its
-  /// neighbours and fold cells: LHDL gluteus maximus with an even perimeter, 24 folded cells
-  /// before the untangling with 0.3, 11 with 0.05).
+  double contact_depth = 0.3;   ///< contact target depth, in local spacings, (0, 1) (default 0.3)
+  /// Least contact depth: a point just outside goes 3x its distance out, clamped to [this, contact_depth],
+  /// (0, contact_depth] (default 0.3; the retry uses 0.05: a deep target can push a point past neighbours).
   double contact_depth_min = 0.3;
-  /// Unfold the cells the settle leaves inverted (step 7, fibres/untangle_lattice.h) (default true).
-  bool untangle_cells = true;
+  bool untangle_cells = true;   ///< unfold the cells the settle leaves inverted (step 7) (default true)
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
   /// fibres/untangle_lattice.h).
   LatticeUntangleOptions untangle;
-  /// When the fibres fail the check, decompose once more with alternative_placement() (first in
-  /// retry_plan()) and keep the better result (better_result()) (default true: the folds a placement
-  /// leaves depend on its free choices, and a muscle that folds with one often does not with
-  /// the other; docs/BENCHMARKS.md, "Decompose").
+  /// On a failed check, decompose again with alternative_placement() and keep the better result
+  /// (default true: folds depend on the placement's free choices, and often differ between the two).
   bool retry_alternative = true;
-  /// The alternative placement and the rims left (retry_plan()) are skipped when the first
-  /// result has more inverted cells than this, >= 0 (default 50: on the 47 corpus muscles no first
-  /// result with more folded cells (72, 135, 204, 311) passed on the second try, and those tries
-  /// took 40 s of the batch's 233 s of processor time; results with 2-47 were retried and two of
-  /// them then passed; docs/BENCHMARKS.md, "Decompose". The rims left, gated too since
-  /// 2026-11-22: after first results with 136, 196 and 313 folded cells they gave 134, 203 and
-  /// 311 for 40 s of processor time; the one muscle they rescue had 3). Skipped too, whatever
-  /// this value, when the first result's folds outlasted the untangling with the surface ring
-  /// free (LatticeUntangleReport::free_ring_tried; LHDL psoas: 29 cells, retries 70 and 65).
+  /// Skip the alternative placement and the rims left when the first result has more inverted cells
+  /// (or outlasted the free-ring untangling), >= 0 (default 50: such results seldom pass on a retry).
   long retry_max_inverted_cells = 50;
-  /// Move the fibre segments that leave the muscle between their points back inside (step 10,
-  /// fibres/contain_segments.h) (default true).
+  /// Move the fibre segments that leave the muscle back inside (step 10, fibres/contain_segments.h)
+  /// (default true).
   bool contain_segments = true;
   /// Those moves: sweeps, margin, samples, largest shift (defaults: fibres/contain_segments.h).
   SegmentContainmentOptions segments;
@@ -152,72 +126,29 @@ struct DecomposeOptions {
   /// The final check (default_check()): the criteria of fibres/fibre_check.h with the segments,
   /// turning and ends figures reported but not judged.
   CheckOptions check = default_check();
-  /// Corner twists (degrees, each in [-180, 180]) tried in turn, each a whole decomposition with
-  /// placement.corner_twist_deg replaced, when the attachment areas come from landmarks and the
-  /// decomposition with placement.corner_twist_deg (and the alternative placement) fails the
-  /// check; the first that passes is kept, else the best by better_result(). Default
-  /// {0, 67.5, 22.5}: with the square cross-section the twist has a period of 90 degrees, and
-  /// these split it in steps of 22.5 with 45. Why: with landmark areas the poles of
-  /// the placement lie on the muscle's side, where the twist's reference (the muscle's second
-  /// principal axis seen from each level) is unreliable, and coverage p95 swings with the twist
-  /// (LHDL gluteus maximus, parallel template: 2.34 at 45, 2.56 at 0, 2.97 at 22.5, 1.83 at 67.5;
-  /// iliacus: 3.02 at 45, 1.85 at 0; docs/BENCHMARKS.md, "Decompose"). Automatic areas never
-  /// retry: their poles are the muscle's ends, where 45 was measured on the whole corpus. Empty:
-  /// no retry.
+  /// Landmark areas only: corner twists (degrees, [-180, 180]) tried in turn after a failed check, the
+  /// first pass kept (default {0, 67.5, 22.5}: near landmark poles the twist's reference is unreliable).
   std::vector<double> landmark_twists_deg = {0.0, 67.5, 22.5};
-  /// Automatic areas only: the areas the lattice's ends are placed on, cast onto and held near
-  /// while untangling are this share of attachments.end_fraction at each end, (0, 1] (default 1).
-  /// The check still measures the fibre ends against the full areas (attachments.end_fraction),
-  /// which contain the smaller ones, so a result passes `fascicle check` with the same
-  /// end fraction.
+  /// Automatic areas only: share of attachments.end_fraction the lattice ends are placed on, (0, 1]
+  /// (default 1); the check still uses the full areas, so `fascicle check` passes the same result.
   double placement_end_share = 1.0;
-  /// Automatic areas only: when the decomposition (and the retries before this one in
-  /// retry_plan()) fails the check, decompose once more with placement_end_share multiplied by
-  /// this, and keep the better result; (0, 1), or 0 for no such retry (default 0.8: the LHDL psoas,
-  /// whose insertion end hooks, folds 2 cells with the full areas and none with 0.8 of them,
-  /// coverage p95 1.98; 0.6 of them folded 6, and shares 0.6-1.4 left the opendihu left biceps
-  /// at 6-119 folded cells; docs/BENCHMARKS.md, "Decompose", fifteenth session). Not gated by
-  /// retry_max_inverted_cells: a different area changes the whole placement.
+  /// Automatic areas only: on a failed check, retry with placement_end_share times this, (0, 1) or 0
+  /// for none (default 0.8: smaller areas keep the ends off a hooked tendon); not gated by cell counts.
   double end_share_retry = 0.8;
-  /// When the kept result's longest layer of fibre segments is more than this many times the
-  /// median layer (the check's steps.layer_ratio: the rings skipped a stretch of the muscle),
-  /// decompose once more with the lateral rings placed by meridian
-  /// (PlacementOptions::meridian_rings): the first try's options, then, unless that result is
-  /// kept and passes, the kept try's options. A result is kept when it is better
-  /// (better_result()), or when both pass and it has the lower layer ratio and no deeper segment
-  /// excursion. >= 1, or 0 for no such try (default 2.5: on the corpus only the LHDL psoas, 4.08,
-  /// is retried, and keeps its first meridian try, 1.56; the opendihu biceps, 2.10-2.17, fold
-  /// with meridian rings; docs/BENCHMARKS.md, "Decompose", twenty-second session).
+  /// Retry with meridian rings (PlacementOptions::meridian_rings) when the longest segment layer is over
+  /// this times the median (the rings skipped a stretch of muscle), >= 1 or 0 for none (default 2.5).
   double even_layers_ratio = 2.5;
-  /// Width of the lattice cells between the surface ring and the outermost fibres, in fibre
-  /// spacings (springs::LatticeOptions::edge_cell; default 1: the ring spaced like the fibres;
-  /// 0.5 puts each fibre at the centre of its share of the cross-section, so that the outermost
-  /// fibres lie half a spacing from the surface instead of a whole one, but costs the settle
-  /// about 60 ms on the LHDL gluteus maximus).
-  /// Measured on the corpus (docs/BENCHMARKS.md, "Decompose", twenty-third session): median
-  /// coverage p95 1.47 with 1, 1.03 with 0.5; but 0.5 folds two muscles that pass with 1, so
-  /// see edge_cell_fallback. In (0, 1].
+  /// Width of the cells between the surface ring and the outermost fibres, in fibre spacings, (0, 1]
+  /// (default 1; 0.5 centres each fibre in its share of the cross-section but folds more muscles).
   double edge_cell = 1.0;
-  /// With edge_cell < 1: when the first try fails the check (or its layer ratio is above
-  /// even_layers_ratio), decompose again with edge cells of 1 and the whole retry plan, and keep
-  /// the better result (default true). The first try then leaves out the untangling's free-ring
-  /// attempts (untangle.free_ring), which take most of a failing try's time. With false, every
-  /// try uses edge_cell.
+  /// With edge_cell < 1: when the first try fails (or its layer ratio is too high), run the whole plan
+  /// with edge cells of 1, keep the better (default true; the first try then skips free-ring attempts).
   bool edge_cell_fallback = true;
-  /// Landmark areas only: when the whole plan (edge cells as edge_cell, level or meridian rings,
-  /// every retry) fails the check, run it once more with meridian rings and edge cells of 0.5
-  /// (no fallback, no layer-ratio try) and keep the better result (default true; no effect when
-  /// edge_cell is already below 1 or meridian rings are asked for). A result that passes before
-  /// this stage is never changed by it. Why: with its landmark files the LHDL psoas, whose origin
-  /// strip runs down its side and whose tendon hooks, failed every earlier try with the parallel
-  /// template and this stage passed (coverage p95 1.992, 0 folded cells; docs/BENCHMARKS.md,
-  /// "Decompose", twenty-fifth session). Since the untangling's depths are measured across the
-  /// fibres (LatticeUntangleOptions::across_spacing) that pair passes on its first try (twenty-sixth
-  /// session); the psoas with the curved, fanned and rectus templates passes only on this stage
-  /// (twenty-seventh session).
+  /// Landmark areas only: when every try fails, run the plan once more with meridian rings and edge
+  /// cells of 0.5 (default true: it rescues strips that run down the muscle's side and hooked ends).
   bool landmark_narrow_retry = true;
-  /// Not a setting: called with a short description of each stage as it starts ("repair",
-  /// "try 2: settle", ...) so that a caller can show progress; empty: nothing is called (default).
+  /// Not a setting: called with each stage's short description as it starts ("repair", "try 2:
+  /// settle") for progress; empty: nothing is called (default).
   std::function<void(const std::string& stage)> progress;
   /// Throws OptionError naming the first bad field.
   void validate() const;

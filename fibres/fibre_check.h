@@ -169,8 +169,7 @@ struct LengthFigures {
 
 /// How evenly the points are spaced along the fibres (segment lengths, mesh units). A fibre with
 /// one segment several times its others is sampled coarsely there: a curved muscle's surface can
-/// cut such a segment although both its points are inside (LHDL psoas: layers of 17 mm, then one
-/// of 66-70 mm round the hook of its insertion end).
+/// cut such a segment although both its points are inside (as round a hooked tendon end).
 struct StepFigures {
   double mean = 0.0;          ///< mean segment length over all segments
   /// Per fibre, its longest segment divided by its mean segment: the largest over the fibres,

@@ -1,8 +1,7 @@
 #pragma once
 /// \file landmark_strip.h
 /// Landmark areas joined into strips. Landmark files often mark an attachment along a bone crest
-/// by a row of points several region radii apart (LHDL: neighbours 2-15 mm apart, spanning-tree
-/// edges up to 30 mm, on muscles 173-330 mm long, where the region radius is 1 % of the length).
+/// by a row of points several region radii apart (the region radius is 1 % of the muscle length).
 /// The union of small disks round such points is a string of separate blobs: the placement's
 /// star radius from the region centre stops at the first gap, and the cast of the fibre ends
 /// shrinks the face until every end lies near one landmark, so the fibres start on a small part
@@ -11,8 +10,7 @@
 /// points along each join, projected onto the surface, turns the row into a gapless strip: the
 /// region, the face placed into it, the cast and the check's attachment distances then follow
 /// the whole crest. The check then measures the ends' distance to the strip, not to the nearest
-/// listed landmark (LHDL: ends within 1 % of the length of the strip lie up to 5.3 % from the
-/// nearest landmark, where the joins are long; docs/BENCHMARKS.md, "LHDL landmark strips").
+/// listed landmark, which where the joins are long can lie several times farther.
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
 #include "morph/surface_query.h"
@@ -26,19 +24,14 @@ struct StripOptions {
   /// Join the landmarks of each landmark area into a strip (default true; automatic areas are
   /// never joined: they are already every vertex of an end).
   bool join = true;
-  /// Longest join, as a fraction of the muscle length, in (0, 1] (default 0.1: every LHDL landmark
-  /// row joins into one strip; the longest minimum-spanning-tree edge there is 30 mm, between two
-  /// of the four psoas clouds, 0.092 of its 330 mm length). Longer gaps stay gaps.
+  /// Longest join, share of the muscle length, (0, 1] (default 0.1: long enough to join the rows of
+  /// one landmark area into one strip); longer gaps stay gaps.
   double max_gap = 0.1;
-  /// Spacing of the points added along a join, as a fraction of the muscle length, in (0, 0.1]
-  /// (default 0.004: well under the region radius of 0.01, so that the disks round the points
-  /// overlap into a strip).
+  /// Spacing of the points added along a join, share of the muscle length, (0, 0.1] (default
+  /// 0.004: well under the region radius of 0.01, so that the disks round the points overlap).
   double step = 0.004;
-  /// When every try with the strips fails the check, the whole retry plan runs again with the
-  /// landmark disks (join off) and the best of all tries is kept (fibres/decompose.h,
-  /// retry_plan()), so that no result is worse than without the strips by better_result()
-  /// (default true; LHDL gluteus medius, rectus template: coverage p95 3.84 with the strips, 2.97
-  /// with the disks, both failing). Costs up to twice the tries on a muscle that keeps failing.
+  /// When every try with strips fails, rerun the retry plan with landmark disks (join off), keep the best
+  /// (default true: never worse than without strips; costs up to twice the tries on a failing muscle).
   bool disk_fallback = true;
   /// Areas with more points than this are left as they are (dense enough, and the spanning tree
   /// costs the square of the count), >= 2 (default 4096).

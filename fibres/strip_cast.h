@@ -5,7 +5,7 @@
 /// points next to the face, shrunk towards its centroid by a factor lambda, and keeps the first
 /// lambda (1, 0.8, 0.64, ...) whose every end lands within the end radius of an area point. On a
 /// strip only a narrow band across it is near the area, so one factor for both directions shrinks
-/// the whole face to a spot on the strip (LHDL: factors 0.07-0.17) and the first layer of cells
+/// the whole face to a spot on the strip (factors well under 0.2) and the first layer of cells
 /// becomes a steep funnel that folds. Here the offsets' components along the strip (its principal
 /// direction seen along the cast axis) and across it are shrunk by separate factors; the pair
 /// that keeps the largest face (product of the factors) is used, ties going to the larger factor

@@ -11,13 +11,11 @@
 /// becomes a region: the vertices within `region_radius` (of the muscle length) of an area point.
 /// Its centre is the region vertex farthest (on the sphere) from the region's border, so that it
 /// lies inside the region even when the region is not convex. A landmark area can be a long strip
-/// running down the side of the muscle (LHDL gluteus medius: its origin landmarks span 0.54-1.00
-/// of the principal axis); centred in the middle of the strip, the face leaves the end of the
-/// muscle beyond it without fibres (the top tenth 94 % uncovered, coverage p95 2.34). For landmark
-/// areas the centre is therefore moved towards the region's far end: the vertex farthest from the
-/// other area among those at least `landmark_centre_keep` of the deepest vertex's distance from
-/// the border (fibres then start at the muscle's end: coverage p95 1.60; docs/BENCHMARKS.md,
-/// "LHDL landmark regions centred towards their far ends"). A pole frame (fibres/pole_frame.h:
+/// running down the side of the muscle; centred in the middle of the strip, the face would leave
+/// the end of the muscle beyond it without fibres. For landmark areas the centre is therefore
+/// moved towards the region's far end: the vertex farthest from the other area among those at
+/// least `landmark_centre_keep` of the deepest vertex's distance from the border, so that the
+/// fibres start at the muscle's end. A pole frame (fibres/pole_frame.h:
 /// rotation + Moebius map) sends the muscle's origin centre to the north pole and its insertion
 /// centre to the south pole, exactly; the template's frame is a rotation. In the pole frames a
 /// point has polar angle theta and azimuth phi; the correspondence keeps phi (up to a twist that
@@ -52,69 +50,34 @@ namespace fascicle {
 
 /// Options of the template placement.
 struct PlacementOptions {
-  /// An attachment region is every muscle vertex within this fraction of the muscle length of an
-  /// area point (default 0.01; fibre ends then lie within about that distance of their area).
+  /// An attachment region is every muscle vertex within this share of the muscle length of an area
+  /// point (default 0.01: fibre ends then lie within about that distance of their area).
   double region_radius = 0.01;
-  /// The star radius of a region is multiplied by this before the template face is mapped into
-  /// it, so that face points stay clear of the region's border (default 0.9).
+  /// Factor on a region's star radius before the face is mapped into it (default 0.9: face points
+  /// stay clear of the region's border).
   double region_margin = 0.9;
-  /// Azimuth bins for the star radius of a region (default 72, every 5 degrees).
-  int azimuth_bins = 72;
-  /// The two regions' star radii are scaled down together where they would leave less than this
-  /// polar-angle gap (radians) for the lateral band (default 0.3).
+  int azimuth_bins = 72;      ///< azimuth bins for a region's star radius (default 72, every 5 degrees)
+  /// Least polar-angle gap (radians) left for the lateral band; both regions' star radii shrink
+  /// together to keep it (default 0.3).
   double min_band = 0.3;
-  /// Largest depth of an attachment face on the muscle (the spread of its points along the
-  /// muscle's end axis) as a share of the distance from its shallowest point to the first lateral
-  /// ring (default 0.1, measured on the sample muscle: 0.5 leaves 90 of 1134 cells inverted, 0.1
-  /// leaves 17, 0.05 leaves 8). A face wrapped round a rounded end deeper than the first ring of fibre
-  /// points would fold the first layer of cells; the face is shrunk (by 0.3 to 0.8 a round, from
-  /// the measured depth) until it fits.
+  /// Largest attachment face depth along the end axis, share of the distance to the first ring
+  /// (default 0.1: a face wrapped deeper than the first ring folds the first layer, so it is shrunk).
   double max_face_depth = 0.1;
-  /// Largest number of shrinking rounds (default 12).
-  int face_shrink_rounds = 12;
-  /// Lateral rings of the lattice go to even steps of length along the muscle (area per level
-  /// circumference) when true, to even steps of surface area when false (default true: keeps the
-  /// layers flat where the muscle narrows to a tendon).
+  int face_shrink_rounds = 12;  ///< largest number of face shrinking rounds (default 12)
+  /// Lateral rings at even steps of length along the muscle (true) or of surface area (false)
+  /// (default true: keeps the layers flat where the muscle narrows to a tendon).
   bool band_by_length = true;
-  /// With band_by_length: each lateral ring point goes to the same share of the length of its
-  /// own meridian (the curve of its azimuth from the origin region to the insertion region,
-  /// through the area-weighted face centres of up to 48 levels in 24 azimuth sectors, each
-  /// sector's window three sectors wide, the curve smoothed twice by (1, 2, 1)), so a ring need
-  /// not follow one level of the sphere map; its azimuth stays the level ring's (default false:
-  /// one level per ring). Where the sphere map's levels run obliquely along a thin tendon, a
-  /// level ring skips it (LHDL psoas: layers of 15-28 mm, then one of 70 mm round its hooked
-  /// insertion end, the tendon's hook left without fibres); by meridian its lateral layers are
-  /// 20-39 mm, the fibres following the hook. As the first choice it passed 45 of the 47 corpus muscles
-  /// (the two opendihu biceps fold), so decompose tries it only for a result with a layer that
-  /// long (DecomposeOptions::even_layers_ratio; docs/BENCHMARKS.md, "Decompose", twenty-second
-  /// session).
+  /// With band_by_length: each ring point at the same share of its own meridian's length (true) or
+  /// one sphere-map level per ring (false) (default false; decompose retries with it, even_layers_ratio).
   bool meridian_rings = false;
-  /// Azimuth (degrees) of the template's r axis from the muscle's second principal axis in each
-  /// cross-section, in [-180, 180] (default 45: a corner of the lattice's square cross-section
-  /// at each end of the muscle's broad axis). With 0 the middle of a lattice side lies on the
-  /// thin edge of a flat muscle, where the interior cannot follow the surface into the edge: the
-  /// settled lattice stays away from that flank (VHF iliacus, vastus lateralis: 11-16 % of the
-  /// volume farther than 2 ideal spacings from every fibre, coverage p95 3.8-4.0; with 45:
-  /// 1.6-1.7; docs/BENCHMARKS.md, "Decompose").
+  /// Azimuth (degrees) of the template's r axis from the muscle's second principal axis, [-180, 180]
+  /// (default 45: lattice corners on the broad axis; with 0 the lattice shuns a flat muscle's thin edge).
   double corner_twist_deg = 45.0;
-  /// Around each cross-section, template points go to the muscle azimuth at the same share of
-  /// the perimeter (surface area by azimuth), counted from a lattice corner, when true; to the
-  /// same azimuth (plus the twist) when false (default false; the second try of a failed
-  /// decomposition switches it, DecomposeOptions::retry_alternative. The sphere map compresses
-  /// the thin edges of a flat muscle, and by azimuth alone the lattice corners crowd into them;
-  /// even shares spread the ring evenly (ring spacing max/min 2.1 against 3.5 on a 5 : 1 flat
-  /// capsule), but as the first choice (with contact_depth_min 0.05) it passed 34 of the 38
-  /// corpus muscles the other passes, and 2 others: docs/BENCHMARKS.md, "Decompose",
-  /// 2026-11-21 21:24-21:30).
+  /// Ring points at even shares of each cross-section's perimeter (true) or at the azimuth plus the
+  /// twist (false) (default false; the retry switches it: even shares keep corners off thin edges).
   bool even_perimeter = false;
-  /// Landmark areas only: the centre of each region is the region vertex farthest (in space) from
-  /// the other area's centroid among those at least this share of the largest distance from the
-  /// region's border (on the sphere), in (0, 1] (default 0.35; 1: the vertex farthest from the
-  /// border, the rule for automatic areas). On the LHDL matrix without the psoas, 0.35 passes 15
-  /// of 15 muscle and template pairs, 0.5 passes 14 (gluteus maximus with rectus: coverage p95
-  /// 2.03); 0.7 leaves the centre too deep in the strip. The psoas folds with either (more than
-  /// with 1: 1411 / 1231 / 1155 inverted cells over its five templates with 0.35 / 0.5 / 1;
-  /// docs/BENCHMARKS.md, "LHDL landmark regions centred towards their far ends").
+  /// Landmark areas only: region centre at the vertex farthest from the other area among those at
+  /// least this share of the deepest from the border, (0, 1] (default 0.35; 1: the deepest vertex).
   double landmark_centre_keep = 0.35;
   /// Throws OptionError naming the first field out of range.
   void validate() const;

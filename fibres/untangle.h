@@ -40,23 +40,15 @@ struct UntangleOptions {
   /// Stop when neither the smallest det J has grown nor the inverted count fallen for this
   /// many stages, >= 1 (default 15).
   int stall_stages = 15;
-  /// Least sigma of the eps rule (each stage aims eps at (1 - sigma) chi(min det J); sigma is the
-  /// stage's relative energy decrease, at least this), (0, 1) (default 0.1, the paper's). 0.3 takes
-  /// about a third of the stages on folds that are a small part of the energy (14 stages instead
-  /// of 42 for 13 folded tetrahedra of the LHDL gluteus maximus), but with the face rims cast it
-  /// left 2 cells of VHF vastus lateralis folded: 43 corpus muscles passed instead of 44
-  /// (docs/BENCHMARKS.md, "Merged 2026-11-22").
+  /// Least sigma of the eps rule (each stage aims eps at (1 - sigma) chi(min det J)), (0, 1) (default
+  /// 0.1, the paper's: larger values take fewer stages but leave some folds).
   double min_sigma = 0.1;
   int polish_iterations = 30;  ///< iterations after the last tetrahedron turned positive, >= 0 (default 30)
   /// A tetrahedron counts as positive when det J > min_det (J relative to its reference)
   /// (default 1e-4: well clear of the round-off limit of the quality check).
   double min_det = 1e-4;
-  /// Return the best state the run met when it ends worse (true), or always the last state
-  /// (false) (default true). Best: fewest counted inverted tetrahedra, then fewest containment
-  /// points outside, then the largest smallest det J (also with none inverted, so that soft pins
-  /// that gain nothing on the counts are undone where they only worsen the worst cell); the entry
-  /// state and each stage's end are compared, the earlier kept on a tie. The polish runs from the
-  /// state returned.
+  /// Return the best state met (fewest inverted, then fewest outside, then largest least det J; earlier on a
+  /// tie) when the run ends worse (true), or the last (false) (default true; the polish runs from it).
   bool keep_best = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;

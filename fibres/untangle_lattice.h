@@ -43,125 +43,60 @@ namespace fascicle {
 /// Options of untangle_lattice().
 struct LatticeUntangleOptions {
   UntangleOptions solver;        ///< the barrier solver (defaults: fibres/untangle.h)
-  /// L-BFGS iterations each of the (at most three) attempts may spend, all its rounds together,
-  /// >= 0 (default 8000: a lattice that cannot be unfolded costs seconds, not minutes; an
-  /// iteration count, not a time, so that the result does not depend on the machine).
+  /// L-BFGS iterations per attempt, all its rounds together, >= 0 (default 8000: a lattice that
+  /// cannot be unfolded costs seconds; a count, not a time, so the result is machine-independent).
   int iterations = 8000;
-  /// Weight of the soft pins that hold the fibre ends at their cast places when the first attempt
-  /// lets them move, per squared local spacing (energy units of one well-shaped tetrahedron are
-  /// about 3), > 0 (default 30; stiffer pins make the untangling fail more often).
+  /// Weight of the soft pins holding free fibre ends at their cast places, per squared local spacing
+  /// (a good tetrahedron's energy is about 3), > 0 (default 30; stiffer pins fail more often).
   double end_anchor_weight = 30.0;
-  /// Farthest a fibre end may move from its cast place, as a share of the muscle length, [0, 1)
-  /// (default 0.0095: with the cast ends within 0.01 of an area point, the ends stay within 0.02
-  /// of their areas, the check's limit).
+  /// Farthest a fibre end may move from its cast place, share of the muscle length, [0, 1) (default
+  /// 0.0095: cast ends lie within 0.01 of their area, so moved ends stay within the check's 0.02).
   double end_shift = 0.0095;
-  /// When the attempts with the surface ring held (the lattice lines round the fibres, which the
-  /// placement put on the surface) leave folds, the free-ends attempt and the held-ends one after
-  /// it run again with the ring free: each ring point is held by a soft pin on a plane just
-  /// under the surface (see ring_depth) and may slide along it, so that the rings next to a hooked
-  /// end can turn with the layers inside them (true); or the ring stays where the settle put it
-  /// (false) (default true: with it the opendihu biceps tracer unfolds, docs/BENCHMARKS.md "Folds
-  /// next to hooked ends").
+  /// Rerun the free-ends and held-ends attempts with the surface ring sliding on planes under the surface
+  /// when the held ring leaves folds (default true: rings next to a hooked end must turn with the layers).
   bool free_ring = true;
-  /// Depth of a free ring point's plane under its closest surface point, in local lattice
-  /// spacings, [0, 1) (default 0.1: with 0 more interior points were pushed out; with 0.3 the
-  /// coverage p95 of the three bent muscles rose to 2.0-2.5).
+  /// Depth of a free ring point's plane under the surface, local spacings, [0, 1) (default 0.1:
+  /// shallower pushes interior points out, deeper raises the coverage p95 of bent muscles).
   double ring_depth = 0.1;
-  /// Weight of a free ring point's plane pin, per squared local spacing, > 0 (default 120).
-  double ring_weight = 120.0;
-  /// With attachment areas given: how far a fibre end may lie from the nearest point of its area,
-  /// as a share of the muscle length, [0, 1); while the ends are free they move without cost
-  /// within 0.8 of it (a ball round the nearest area point, renewed each round) and are put back
-  /// onto it at the end, instead of within `end_shift` of their cast places; 0 = the cast-place
-  /// rule (default 0.015: under the check's 0.02, so that an end the clamp leaves at the limit
-  /// still passes; next to a hooked tendon end the unfolded end layer needs its ends farther from
-  /// their cast places than end_shift allows, docs/BENCHMARKS.md "Folds next to hooked ends").
+  double ring_weight = 120.0;    ///< free ring point's plane pin, per squared spacing, > 0 (default 120)
+  /// With areas: how far a free fibre end may lie from its area, share of the muscle length, [0, 1),
+  /// 0 = end_shift (default 0.015: under the check's 0.02; next to a hooked end, end_shift is too tight).
   double end_area_margin = 0.015;
-  /// Weight of the first soft pin of a point moved outside, per squared local spacing (4x each
-  /// round), > 0 (default 30).
-  double contact_weight = 30.0;
-  /// Containment pins as half-spaces (the point is pushed under the tangent plane at its closest
-  /// surface point, `contact_depth` deep, and may slide along it) (true) or as zero-length springs
-  /// to that point (false) (default true).
+  double contact_weight = 30.0;  ///< first pin of a point outside, per spacing^2, 4x a round, > 0 (default 30)
+  /// Containment pins as half-spaces under the tangent plane at the closest surface point, free to
+  /// slide (true), or as zero-length springs to that point (false) (default true).
   bool sliding_contact = true;
-  /// The pins at the end put a point still outside at the shallowest of a few depths under the
-  /// closest surface point (0.02 to `contact_depth` local spacings) that folds none of its cells,
-  /// else at the one that folds the fewest (true), or always `contact_depth` deep (false)
-  /// (default true).
+  /// Final pins at the shallowest of a few depths (0.02 to contact_depth) that folds none of the
+  /// point's cells, else the fewest (true), or always contact_depth deep (false) (default true).
   bool pin_search = true;
-  /// Containment rounds of an attempt (soft pins, untangle again), 0..100 (default 16). Each
-  /// round takes in some of the points left outside; those still outside after the last are
-  /// pinned just inside, and many pins close together pinch the cells between them. With 6 the
-  /// LHDL psoas with its landmark files failed with the fanned and rectus templates (6 and 16
-  /// folded cells): every try ended with hundreds of points outside and still falling; with 16
-  /// both pass (0 folded, coverage p95 1.918 and 1.870), and the corpus stays at 47 of 47
-  /// (docs/BENCHMARKS.md, "Decompose", twenty-seventh session).
+  /// Containment rounds of an attempt, 0..100 (default 16: points still outside after the last round
+  /// are pinned, and many pins close together pinch the cells between them).
   int contact_rounds = 16;
-  /// An attempt's containment rounds stop after this many rounds in a row that did not leave
-  /// fewer points outside than the best round of the attempt before them (the pins at the end take
-  /// the points still outside), 0..100, 0 = never (default 0: 2 halved the untangling's iterations
-  /// on the LHDL gluteus maximus, whose soft pins of rounds 3 to 6 pushed points out as fast as
-  /// they pulled others in, but the more points the pins at the end then took folded the LHDL
-  /// iliacus (98 cells) and the VHF tensor fasciae latae (1) in the corpus, docs/BENCHMARKS.md).
+  /// Stop an attempt's rounds after this many in a row that leave no fewer points outside than the
+  /// best, 0..100, 0 = never (default 0: stopping early saves time but leaves more pins, which fold cells).
   int contact_stall_rounds = 0;
-  /// A containment round that leaves cells folded and folds no fewer than the best round before
-  /// stops the attempt's rounds ("fold_stalled") only when it also leaves no fewer points outside
-  /// than the best round before (true), or whatever the points outside did (false, the rule
-  /// before 2026-11-29) (default true). On the LHDL psoas with its landmark files and the curved
-  /// template the attempt with the surface ring free stopped after one round with 1 folded
-  /// tetrahedron and 375 points outside, which the pins at the end then took; every try failed
-  /// (9 folded cells at best). Going on while points come in, the narrow stage's untwisted try
-  /// ends with none outside and passes (coverage p95 1.794); the corpus and the other 19 LHDL pairs
-  /// are unchanged (docs/BENCHMARKS.md, "Decompose", twenty-seventh session).
+  /// A round that folds no fewer cells than the best stops the rounds only if it also leaves no fewer
+  /// points outside (true), or always (false) (default true: rounds still taking points in may unfold).
   bool fold_stall_needs_outside_stall = true;
-  /// Rounds of "fix the points still outside just inside, untangle again with them fixed" at the
-  /// end, >= 0 (default 3; the pins of the last round stay even if they fold a cell, which the
-  /// report then counts).
+  /// Rounds of "fix the points still outside just inside, untangle again" at the end, >= 0 (default
+  /// 3; the last round's pins stay even if they fold a cell, which the report counts).
   int pin_rounds = 3;
-  /// Depth of a contact point below the surface, in local lattice spacings, (0, 1) (default 0.3).
-  double contact_depth = 0.3;
-  /// Containment inside the untangling's energy (UntangleContainment, fibres/untangle.h) in the
-  /// attempts with the surface ring free: each free interior lattice point (not the ring, held by
-  /// its plane pins, nor the fibre ends, held by their area pins) within `containment_band` local
-  /// spacings h of the surface, or outside it, pays
-  /// contact_weight / h^2 * max(0, d + containment_margin h)^2 on its signed distance d to the
-  /// surface (a signed-distance grid of the muscle, morph/signed_distance_grid.h), the weight raised
-  /// 4x a stage while a point is outside, so that the unfolded lattice is already inside and the
-  /// pins at the end have few points to move; the soft pins of the rounds stay as they are (true);
-  /// or only the soft pins (false) (default false: in the corpus it took the LHDL psoas from 33 to
-  /// 2 folded cells and the opendihu left biceps from 123 to 14 (coverage p95 1.63), but folded
-  /// 16 cells of the biceps tracer, which passes without it: 44 of 47 pass instead of 45,
-  /// docs/BENCHMARKS.md "Containment inside the untangling energy").
+  double contact_depth = 0.3;    ///< contact target depth, local spacings, (0, 1) (default 0.3)
+  /// Free-ring attempts: containment also in the untangling's energy (UntangleContainment,
+  /// fibres/untangle.h) (default false: it unfolds some muscles but folds others that pass without it).
   bool containment_energy = false;
-  /// The same in every attempt, not only those with the ring free (default false).
-  bool containment_energy_everywhere = false;
-  /// Depth the containment energy pushes a point to, in local spacings, [0, 1) (default 0.15:
-  /// above the error of the grid's interpolation, whose cells are a quarter of the smaller
-  /// spacings). (Variants measured and removed, each worse on the LHDL psoas and the opendihu left
-  /// biceps: the freed fibre ends in the containment energy with a ball round their areas, the
-  /// freed ring in it, a scale raised only after stages that fold no fewer cells, a larger
-  /// budget; docs/BENCHMARKS.md, "Fibre ends in the containment energy" and the s10a section.)
+  bool containment_energy_everywhere = false;  ///< the same in every attempt (default false)
+  /// Depth the containment energy pushes a point to, local spacings, [0, 1) (default 0.15: above the
+  /// error of the signed-distance grid's interpolation, whose cells are a quarter of the spacing).
   double containment_margin = 0.15;
-  /// When the free-ring attempts leave folds, they run once more with the containment energy
-  /// switched (on when containment_energy is false, off when it is true), from the settled lattice;
-  /// the result with the fewest folded cells after its pins stays (the earlier on a tie), so that
-  /// muscles the first setting unfolds never pay for the second (default true: the LHDL psoas and
-  /// the opendihu left biceps, the only corpus muscles whose free-ring attempts leave folds, keep
-  /// the contained result, the others are untouched; docs/BENCHMARKS.md).
+  /// When the free-ring attempts leave folds, rerun them with containment_energy switched and keep
+  /// the fewest folds, earlier on a tie (default true: muscles the first setting unfolds never pay).
   bool containment_retry = true;
   /// Points farther inside than this many local spacings are left out of the containment energy
   /// (they cannot reach the surface in one run), > 0 (default 3).
   double containment_band = 3.0;
-  /// The local spacing h that the depths (ring_depth, contact_depth, the pins' search,
-  /// containment_margin, containment_band) are measured in: the mean length of a point's springs
-  /// within its layer, across the fibres (lattice_across_spacing()) (true); or of all its springs,
-  /// the springs along the fibres included (lattice_local_spacing()) (false). The weights stay per
-  /// squared lattice_local_spacing(). Along a long, thin
-  /// muscle the springs along the fibres are many times longer than those across (LHDL psoas,
-  /// 15 points a fibre: about 23 mm against 1.7 mm), so a depth of 0.3 h over all springs put
-  /// points one and a half fibre spacings under the surface (default true: the corpus passes, 47
-  /// of 47, in less time, the LHDL psoas with its landmark files and the parallel template on its
-  /// first try; docs/BENCHMARKS.md, twenty-sixth session).
+  /// Depths in spacings across the fibres (lattice_across_spacing()) (true) or over all springs (false)
+  /// (default true: on long thin muscles the springs along the fibres are far longer, so depths overshoot).
   bool across_spacing = true;
   /// Throws OptionError naming the first bad field.
   void validate() const;

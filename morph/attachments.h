@@ -16,31 +16,16 @@ namespace fascicle {
 
 /// Options for attachment areas.
 struct AttachmentOptions {
-  /// Landmarks farther from the surface than this fraction of the muscle's bounding-box diagonal
-  /// are an error (default 0.2). Attachment landmarks sit on bone, not on the muscle surface: the
-  /// LHDL files are up to 29 mm (0.1 of the diagonal) from their muscle; the landmark cloud of a
-  /// wrong muscle (`*.insertion-far.xyz`, about 310 mm) is far above.
+  /// Landmarks farther from the surface than this share of the bounding-box diagonal are an error
+  /// (default 0.2: landmarks sit on bone, near but not on the muscle; a wrong muscle's lie far above).
   double max_landmark_distance = 0.2;
-  /// Automatic areas: the share of the muscle's extent along its principal direction taken at
-  /// each end (default 0.1).
-  double end_fraction = 0.1;
-  /// Automatic areas: where an end's band of end_fraction falls apart into several pieces of
-  /// surface (a muscle with two heads at that end, or a bump), widen that end's band just enough
-  /// that it is one connected piece (over the mesh's edges), at most to max_end_fraction; an end
-  /// that is not connected even then keeps end_fraction (default true). Why: the opendihu left
-  /// biceps brachii's two heads are two separate pieces of its upper band at 0.1 (one at 0.16);
-  /// with the origin on one head's tip the lattice ran through that head and left the other
-  /// empty (14 folded cells); with the band widened past the fork the fibres start where the
-  /// heads join the belly, none inside either head's tendon (docs/BENCHMARKS.md, "Decompose",
-  /// seventeenth session).
+  double end_fraction = 0.1;  ///< automatic areas: share of the principal extent at each end (default 0.1)
+  /// Automatic areas: widen an end's band that falls apart (two heads, a bump) until it is one piece, up
+  /// to max_end_fraction (default true: else the lattice runs through one head and leaves the other empty).
   bool connected_ends = true;
-  /// The widest band connected_ends may take at an end, as a share of the extent, in
-  /// [end_fraction, 0.5) (default 0.3).
-  double max_end_fraction = 0.3;
-  /// A band widened by connected_ends is widened by this share of the extent more (still at most
-  /// max_end_fraction), so that the piece joining the heads is not a thin neck, >= 0 (default
-  /// 0.02; left biceps, inverted cells with margins 0 / 0.01 / 0.02 / 0.03 / 0.04 / 0.05 / 0.1:
-  /// 11 / 0 / 0 / 1 / 1 / 0 / 2, docs/BENCHMARKS.md, "Decompose", seventeenth session).
+  double max_end_fraction = 0.3;  ///< widest band connected_ends may take, [end_fraction, 0.5) (default 0.3)
+  /// A band widened by connected_ends grows by this share of the extent more, up to max_end_fraction,
+  /// >= 0 (default 0.02: so that the piece joining the heads is not a thin neck).
   double connect_margin = 0.02;
   /// Throws OptionError naming the first field out of range.
   void validate() const;

@@ -14,8 +14,8 @@
 ///      hexagon folded onto a capped prism (each piece affinely) and projected centrally;
 ///      Lambert's cylindrical equal-area projection is the second fold. Orientation is kept
 ///      exactly inside each piece; triangles across a fold or near the poles may flip, and do
-///      where flat planar slivers span much of the circumference next to an end (LHDL psoas,
-///      opendihu biceps): every lift that bends planar lines into latitude circles turns them over;
+///      where flat planar slivers span much of the circumference next to an end: every lift
+///      that bends planar lines into latitude circles turns them over;
 ///    * progressive (round muscles first, and the fallback of long ones): progressive-mesh
 ///      embedding (Shapiro and Tal 1998, "Polyhedron realization for shape transformation";
 ///      Praun and Hoppe 2003, "Spherical parametrization and remeshing"): half-edge collapses
@@ -33,7 +33,7 @@
 ///    Tutte embedding), and the areas are balanced by a Gauss-Seidel Newton relaxation of
 ///    sum_t a_t^2 / det_t that refuses (halves) every step that would make a triangle flip or
 ///    degenerate. The report states which starts were tried and whether the result is a
-///    bijection; on the corpus all 47 repaired muscles are (docs/BENCHMARKS.md, "Sphere map").
+///    bijection; `fascicle bench sphere` measures this on the corpus (docs/BENCHMARKS.md).
 ///  - `relax`: the thesis's method (Zeleny 2011, ch. 6.3, after Alexa 2000): Ritter bounding
 ///    sphere, centre moved inside by an exact inside test, projection by normalisation, random
 ///    tetrahedron anchors, centroid relaxation with renormalisation, collapse check, orientation
@@ -77,70 +77,40 @@ struct SphereMapOptions {
   SphereMethod method = SphereMethod::tutte;
 
   // --- tutte ---
-  /// Initial map (default automatic: shapes more elongated than `tube_elongation` start from
-  /// the tube map (prism fold, then Lambert fold), then the progressive-mesh start when those
-  /// are not bijective after untangling; round shapes start from the progressive-mesh start;
-  /// the stereographic lift comes last. The progressive start is bijective by construction; on
-  /// long muscles the tube start with reweighting balances areas better (docs/BENCHMARKS.md).
-  /// The other values force one start, for comparisons.
+  /// Initial map (default automatic: elongated shapes try the tube map, then progressive; round ones
+  /// progressive; stereographic last); the tube start with reweighting balances long muscles better.
   SphereStart start = SphereStart::automatic;
-  /// Progressive start: largest valence a collapse may give the vertex it keeps, while other
-  /// edges can still be collapsed (default 12; raised step by step when none can). Low valences keep the
-  /// coarse levels free of fans of thin triangles.
+  /// Progressive start: largest valence a collapse may give the vertex it keeps, raised when no edge
+  /// can collapse (default 12: low valences keep coarse levels free of fans of thin triangles).
   int progressive_max_valence = 12;
-  /// Progressive start: rounds of flip-free local relaxation of the new vertex, its partner and
-  /// their ring after each vertex split, and 4 x as many sweeps over all vertices each time the
-  /// vertex count doubles (default 2; measured on a noisy 60:1 capsule of 97k vertices: level
-  /// sweeps 0 / 2 / 5 / 8 / 10 gave mean |log area ratio| 1.05 / 0.65 / 0.44 / 0.37 / 0.34 after
-  /// balancing, and 2 degenerate triangles with 0;
-  /// 0 leaves each new vertex where it was split off).
+  /// Progressive start: flip-free relaxation rounds round each split, 4x as many global sweeps per
+  /// doubling (default 2: balances areas much better than 0, which leaves vertices where split off).
   int progressive_relax_rounds = 2;
-  /// Raise the Tutte weights of edges along the muscle's local long direction by k^2, with
-  /// k = (end-to-end edge distance)^2 / area, about length / circumference (default true). Any
-  /// positive weights give a bijection; these keep long muscles from being crowded
-  /// exponentially towards their ends (a conformal map of a 50:1 tube spans e^-100).
+  /// Raise Tutte weights along the local long direction by k^2, k about length / circumference
+  /// (default true: keeps long muscles from crowding exponentially towards their ends).
   bool anisotropic = true;
-  /// Meshes more elongated than this ((end-to-end edge distance)^2 / area; 0.8 for a sphere,
-  /// 16 for a 50:1 capsule) start from the tube map instead of the progressive start (default
-  /// 1.0, measured on the corpus with the stereographic start it used to choose between: below it
-  /// the tube start balances areas worse). Either way the other starts are tried when the first
-  /// is not a bijection.
+  /// Elongation ((end-to-end edge distance)^2 / area; sphere 0.8, 50:1 capsule 16) above which the
+  /// tube start comes first (default 1.0: below it the tube start balances areas worse).
   double tube_elongation = 1.0;
-  /// Tutte reweighting rounds after a tube start (default 8): edge weights times the geometric
-  /// mean of (area ratio)^reweight_exponent of their faces, kept while the mean |log area ratio|
-  /// falls.
+  /// Tutte reweighting rounds after a tube start, edge weights times the faces' (area ratio)^exponent,
+  /// kept while the mean |log area ratio| falls (default 8).
   int reweight_rounds = 8;
-  /// Exponent of the area ratio in the reweighting (default 1, a full step; measured on the
-  /// LHDL gluteus maximus: mean |log area ratio| 0.62 -> 0.045 in 8 rounds, 0.11 with 0.5).
-  double reweight_exponent = 1.0;
-  /// Reweighting stops once the mean |log area ratio| is below this (default 0.05).
-  double reweight_target = 0.05;
-  /// Sweeps of local untangling applied to a start with flipped triangles (default 50).
-  int untangle_sweeps = 50;
-  /// Largest number of Moebius centring steps (default 60).
-  int mobius_steps = 60;
-  /// Stop centring when the area centroid is this close to the sphere's centre (default 1e-3).
-  double mobius_tolerance = 1e-3;
-  /// Largest number of area-balancing sweeps over all vertices (default 60; 0 disables). Tube
-  /// starts after reweighting stop by the tolerance within 10-20 sweeps; stereographic starts
-  /// keep improving slowly (VHF gluteus minimus, 8.5k vertices: mean |log area ratio| 0.68 after
-  /// 10 sweeps, 0.48 after 40, 0.34 after 80, 0.09 after 300 at about 4 ms a sweep), so the cap
-  /// bounds their time; raise it when quality matters more than speed.
+  double reweight_exponent = 1.0;  ///< area-ratio exponent in the reweighting (default 1, a full step)
+  double reweight_target = 0.05;   ///< reweighting stops below this mean |log area ratio| (default 0.05)
+  int untangle_sweeps = 50;        ///< local untangling sweeps on a start with flipped triangles (default 50)
+  int mobius_steps = 60;           ///< largest number of Moebius centring steps (default 60)
+  double mobius_tolerance = 1e-3;  ///< stop centring at this area-centroid offset (default 1e-3)
+  /// Largest number of area-balancing sweeps, 0 disables (default 60: tube starts converge well within
+  /// it; the cap bounds slowly improving stereographic starts; raise it when quality matters more).
   int balance_sweeps = 60;
-  /// Stop balancing when a sweep lowers the energy by less than this fraction (default 1e-4).
-  double balance_tolerance = 1e-4;
+  double balance_tolerance = 1e-4; ///< stop balancing when a sweep lowers the energy by less (default 1e-4)
 
   // --- relax (thesis) ---
-  /// Relaxation stops when the largest vertex move is below this, unit-sphere units (default 1e-5).
-  double relax_threshold = 1e-5;
-  /// Largest number of relaxation iterations in one relaxation (default 10000, the thesis's cap).
-  int relax_max_iterations = 10000;
-  /// New random tetrahedra tried after a failed collapse check (default 5).
-  int relax_restarts = 5;
-  /// Times the threshold is divided by 10 after a failed orientation check (default 3).
-  int relax_threshold_lowerings = 3;
-  /// Seed of the random tetrahedron rotation (default 1; same seed, same result).
-  unsigned seed = 1;
+  double relax_threshold = 1e-5;   ///< stop below this largest vertex move, sphere units (default 1e-5)
+  int relax_max_iterations = 10000;  ///< iterations of one relaxation (default 10000, the thesis's cap)
+  int relax_restarts = 5;          ///< new random tetrahedra tried after a failed collapse check (default 5)
+  int relax_threshold_lowerings = 3;  ///< threshold divided by 10 after a failed orientation check (default 3)
+  unsigned seed = 1;               ///< seed of the random tetrahedron rotation (default 1)
 
   /// Throws OptionError naming the first field out of range.
   void validate() const;

@@ -45,40 +45,33 @@ struct RepairOptions {
   /// Keep-largest is faithful only when the largest component holds at least this share of the
   /// total area (default 0.75); below it the mesh is in pieces and is wrapped instead.
   double min_largest_share = 0.75;
-  /// Self-intersections are first untangled by local smoothing, accepted only when no vertex
-  /// moves farther than this fraction of the diagonal (default 0.01); otherwise the region is
-  /// cut out and refilled.
+  /// Self-intersections are smoothed apart only if no vertex moves farther than this share of the
+  /// diagonal (default 0.01); otherwise the region is cut out and refilled.
   double untangle_limit = 0.01;
   /// Fill holes with refined and faired patches (default true; false: plain triangulation).
   bool fair_holes = true;
-  /// Allow the alpha-wrap fallback (default true). When false, a mesh that local repair cannot
-  /// fix is refused.
+  /// Allow the alpha-wrap fallback (default true; false: a mesh local repair cannot fix is refused).
   bool allow_wrap = true;
-  /// Finest wrap alpha as a fraction of the diagonal (default 1/100). Wrapping runs from coarse
-  /// to fine over `wrap_levels` alphas (finest x 2^k), keeping the finest genus-0 wrap; if even
-  /// the coarsest is not genus 0, coarser alphas up to half the diagonal are tried.
+  /// Finest wrap alpha, share of the diagonal (default 1/100); wraps run coarse to fine (finest x 2^k),
+  /// the finest genus-0 one kept, coarser alphas up to half the diagonal tried if none is.
   double wrap_alpha = 0.01;
   /// Wrap offset as a fraction of alpha (default 1/30).
   double wrap_offset_ratio = 1.0 / 30.0;
-  /// A wrap is accepted only when no point of it lies farther than this fraction of the
-  /// diagonal from the input (default 0.02): a coarse wrap that bridges a real hole or handle
-  /// is not a repair. The offset keeps a faithful wrap about alpha / 30 away.
+  /// Largest distance of a wrap from the input, share of the diagonal (default 0.02: a coarse wrap
+  /// that bridges a real hole or handle is not a repair; a faithful one lies about alpha / 30 away).
   double wrap_max_distance = 0.02;
   /// Alpha levels from coarse to fine (default 5: 16, 8, 4, 2 and 1 times wrap_alpha).
   int wrap_levels = 5;
-  /// Largest wrap output accepted, faces (default 500 000); a finer wrap whose estimated size is
-  /// above it is skipped.
+  /// Largest wrap output accepted, faces; a finer wrap estimated above it is skipped (default 500 000).
   long max_wrap_faces = 500'000;
-  /// Time budget of all wrap attempts together, seconds (default 40). Each attempt runs in a
-  /// child process that is stopped when the budget is spent; the finest genus-0 wrap found by
-  /// then is kept.
+  /// Time budget of all wrap attempts, seconds (default 40); each runs in a child process stopped
+  /// when the budget is spent, and the finest genus-0 wrap found by then is kept.
   double wrap_seconds = 40.0;
   // The program that runs each wrap attempt (`fascicle-wrap-worker`) is found as
   // detail::find_wrap_worker describes: the environment variable FASCICLE_WRAP_WORKER, else beside
   // the running program, else in the build folder; a wrap with no worker is InputError(file_missing).
-  /// Address-space limit of the wrap worker, MiB (default 0: none beyond the limits the process
-  /// itself runs under). A wrap that needs more ends the repair with ErrorCode::repair_failed
-  /// and a message saying so.
+  /// Address-space limit of the wrap worker, MiB (default 0: only the process's own limits); a wrap
+  /// that needs more ends the repair with ErrorCode::repair_failed.
   long wrap_memory_mb = 0;
   /// Sample points per side for the two-sided Hausdorff estimate (default 20000).
   int hausdorff_samples = 20000;

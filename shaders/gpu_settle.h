@@ -22,9 +22,8 @@
 ///   texture; a full-screen pass integrates into three rotating position textures. Readback
 ///   with glReadPixels, directly or through a pixel buffer object.
 ///
-/// Positions live on the GPU relative to the centre of their bounding box (float32 rounding then
-/// scales with the lattice's extent, not with its distance from the origin: measured, a lattice
-/// 1000 units away agrees with the CPU to 1e-7 of its size instead of 1.6e-4).
+/// Positions live on the GPU relative to the centre of their bounding box, so that float32
+/// rounding scales with the lattice's extent, not with its distance from the origin.
 ///
 /// Divergence stops the settle with the CPU solver's SolverError (naming the likely cause and the
 /// option to change): every SettleOptions::energy_interval iterations the total energy is
@@ -59,26 +58,12 @@ struct GpuSettleOptions {
   bool pbo_readback = true; ///< gl-gs: read the positions back through a pixel buffer object
                             ///< (default true: the thesis measured it 25 % faster)
   int texture_width = 2048; ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
-  int stall_checks = 16;    ///< a stall is suspected when this many residual checks in a row bring
-                            ///< no new minimum below 0.99 of the best so far (float32 may have
-                            ///< reached its attainable accuracy, about 1e-5 relative on template
-                            ///< lattices), >= 1 (default 16)
-  double stall_motion = 1e-4;  ///< and confirmed, stopping the solve, only when over the second
-                               ///< half of those checks no free point moved more than this share of
-                               ///< the mean spring rest length (nor more than 64 float32 roundings
-                               ///< of the lattice's extent): a Verlet residual rises for thousands
-                               ///< of iterations while a slow mode swings, with the points moving
-                               ///< (a few % of a spacing per 512 iterations on a 10^3 lattice);
-                               ///< >= 0 (default 1e-4)
-  bool polish = true;  ///< when the float32 solve stalls above the tolerance (stall_checks), the
-                       ///< CPU finishes it in double from the GPU's positions: the static solver's
-                       ///< momentum method, without a coarse start, to the same tolerance, within
-                       ///< the iterations the GPU left of max_iterations (default true). Why: where the springs are stretched far
-                       ///< beyond their rest lengths (a decomposition's tension rest: about 1700
-                       ///< times) the residual is measured against forces of stiffness x rest, and
-                       ///< float32 stops at 0.03-0.16 of it (the opendihu left biceps; the CPU
-                       ///< reaches 1e-4 in 146-321 iterations; polished: 40-161), which changed
-                       ///< which lattice cells fold (docs/BENCHMARKS.md, twentieth session)
+  int stall_checks = 16;    ///< stall suspected after this many checks with no new minimum below 0.99 of
+                            ///< the best, >= 1 (default 16: float32 bottoms out near 1e-5 relative)
+  double stall_motion = 1e-4;  ///< stall confirmed only if no free point moved more than this share of
+                               ///< the rest length, >= 0 (default 1e-4: a swinging slow mode also stalls)
+  bool polish = true;  ///< finish a stalled float32 solve on the CPU in double, momentum method (default
+                       ///< true: far-stretched springs stop float32 short of the tolerance, changing folds)
   /// Throws OptionError naming the bad field.
   void validate() const;
 };
@@ -169,12 +154,9 @@ struct BackendChoice {
   std::string reason;   ///< one line for the log and the report
 };
 
-/// Points from which `auto` moves a Verlet settle to a hardware GPU: 8000 (20^3). Measured on
-/// an NVIDIA H200 against the 16 cores of its host (docs/BENCHMARKS.md, "GPU settle on an
-/// NVIDIA H200"), whole `fascicle settle` runs of n^3 model-6 lattices to relative residual
-/// 1e-4, wall seconds cpu / gl: 10^3 0.127 / 0.487, 15^3 0.112 / 0.149, 20^3 0.439 / 0.249,
-/// 40^3 2.40 / 0.42 (one run each). Below it the context and the per-check synchronisation cost
-/// more than the iterations save. A slower host CPU moves the crossing down, not up.
+/// Points from which `auto` moves a Verlet settle to a hardware GPU: 8000 (20^3). Below it the
+/// context and the per-check synchronisation cost more than the iterations save (measured with
+/// `fascicle settle` on n^3 lattices, docs/BENCHMARKS.md); a slower host CPU moves it down, not up.
 constexpr std::size_t kAutoGpuMinPoints = 8000;
 
 /// Resolves `requested` ("cpu" | "gl" | "gl-gs" | "auto") for a settle of `points` points with

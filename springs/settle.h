@@ -29,9 +29,9 @@
 ///   points start at the harmonic interpolation of the fixed points, then accelerated gradient
 ///   steps preconditioned by one geometric-multigrid V-cycle on the spring Laplacian
 ///   (multigrid.h, multigrid_solver.cpp); its iteration count does not grow with the lattice for
-///   model-26 lattices (32-39 iterations at 20^3 to 50^3), it does for model-6 (springs near
-///   their rest length resist sideways motion little: 435-1222); see docs/BENCHMARKS.md. Other
-///   spring systems run the momentum method instead (report backend "momentum-...").
+///   model-26 lattices, it does for model-6 (springs near their rest length resist sideways
+///   motion little), measured by `fascicle bench springs` (docs/BENCHMARKS.md). Other spring
+///   systems run the momentum method instead (report backend "momentum-...").
 ///
 /// Verlet runs on one of two data paths that agree to rounding: `structured` (a lattice from
 /// lattice.h: struct of arrays, implicit neighbour offsets, per-direction stiffness arrays,
@@ -84,16 +84,12 @@ const char* backend_name(Backend backend);
 /// Options of a settle. The command line maps its flags one-to-one onto these fields.
 struct SettleOptions {
   SolverKind solver = SolverKind::verlet;  ///< solver (default verlet, the thesis's)
-  double tolerance = 1e-6;   ///< stop at this relative residual; 0 runs exactly max_iterations
-                             ///< (default 1e-6)
+  double tolerance = 1e-6;   ///< stop at this relative residual; 0 runs max_iterations (default 1e-6)
   int max_iterations = 100000;  ///< iteration cap, >= 1 (default 100000)
-  Backend backend = Backend::automatic;  ///< Verlet data path; automatic = structured when a
-                                         ///< lattice shape is given and fits (default automatic)
-  /// Structured path: the portable spring loop on every processor (true), whose result is the same
-  /// bit for bit on any x86-64 processor and thread count; or the fastest loop the processor has
-  /// (false: AVX-512, else AVX2 with FMA, else the portable one; the vector loops take 1 / |l|
-  /// from different estimates, so their results differ from each other in the last bits)
-  /// (default false).
+  Backend backend = Backend::automatic;  ///< Verlet data path; automatic = structured when a fitting
+                                         ///< lattice shape is given (default automatic)
+  /// Structured path: the portable spring loop, bit-identical on any x86-64 processor and thread
+  /// count (true), or the fastest one the processor has, AVX-512/AVX2 (false) (default false).
   bool portable_loop = false;
   // Verlet
   double mass = 0.0;     ///< point mass override, > 0; 0 keeps the system's masses (default 0)
@@ -101,48 +97,28 @@ struct SettleOptions {
   double damping = 0.0;  ///< c for DampingMode::value, >= 0, force time per length (default 0)
   double dt = 0.0;       ///< time step, > 0; 0 = automatic: 0.9 of the largest stable step of the
                          ///< damped scheme under a Gershgorin bound of the stiffness (default 0)
-  int energy_interval = 16;  ///< Verlet computes the total energy every this many iterations,
-                             ///< >= 1 (default 16)
+  int energy_interval = 16;  ///< Verlet energy computed every this many iterations, >= 1 (default 16)
   double energy_growth_bound = 100.0;  ///< SolverError when the energy exceeds this times the
                                        ///< initial energy, > 1 (default 100)
   bool record_energy = false;  ///< energy at every iteration into the report (default false)
   // Static
-  StaticMethod static_method = StaticMethod::momentum;  ///< (default momentum: fastest measured
-                                                        ///< on large lattices, docs/BENCHMARKS.md)
+  StaticMethod static_method = StaticMethod::momentum;  ///< (default momentum: fastest on large lattices,
+                                                        ///< measured by `fascicle bench springs`)
   Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
   int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
-  double multigrid_step = 0.9;  ///< multigrid: step alpha along the V-cycle-preconditioned force,
-                                ///< in (0, 2] (default 0.9)
-  bool multigrid_harmonic_start = true;  ///< multigrid: start from the harmonic interpolation
-                                         ///< of the fixed points (the equilibrium at zero rest
-                                         ///< lengths) instead of the given free positions
-                                         ///< (default true)
-  bool multigrid_directional = false;  ///< multigrid: precondition each coordinate by the
-                                       ///< springs weighted by the diagonal of their Hessian
-                                       ///< blocks at the start (directional stiffness) instead
-                                       ///< of the Laplacian (default false: measured slower,
-                                       ///< docs/BENCHMARKS.md)
-  int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each
-                                      ///< coarse correction, 1..20 (default 1: fewer iterations
-                                      ///< and less time than 2 at 30^3 model-6 and 40^3 model-26)
-  int coarse_start_points = 4096;  ///< static momentum on a lattice: start from the settled
-                                  ///< lattice of every other point, interpolated (coarse_start.h),
-                                  ///< recursively while a lattice has more than this many points;
-                                  ///< 0 = off, else >= 8 (default 4096)
-  double coarse_start_tolerance = 1e-6;  ///< relative residual the coarse lattices are settled to
-                                         ///< (at least the tolerance), in (0, 1) (default 1e-6: model-26
-                                         ///< lattices need accurate coarse solutions, docs/BENCHMARKS.md)
-  /// Coarse start of a model-6 lattice: the free points of each interpolated start are moved by a
-  /// fixed pseudo-random offset (each coordinate uniform in [-a/2, a/2), hashed from the point's
-  /// index, so the same on every run and thread count), a = this share of the lattice's mean axis
-  /// spring rest length, in [0, 1], 0 = none (default 0.2). Why: the interpolated start is smooth,
-  /// and where model-6 springs are compressed (the lattice squeezed along an axis) the fine
-  /// lattice's equilibria are buckled by modes of the fine spacing that the coarse lattice cannot
-  /// hold; the smooth start is then near a saddle, which the momentum method leaves only as fast as
-  /// its round-off grows. The bench problem at 100^3 model-6: 4125-4784 fine iterations to 1e-6
-  /// with 0.1-1.0 of the rest length, 7313 without (docs/BENCHMARKS.md, nineteenth session).
-  /// Model-26 lattices (their diagonals hold them) are not perturbed: at 50^3 a perturbation of
-  /// 0.2 took 2227 iterations instead of 1737.
+  double multigrid_step = 0.9;  ///< multigrid: step along the preconditioned force, (0, 2] (default 0.9)
+  bool multigrid_harmonic_start = true;  ///< multigrid: start from the harmonic interpolation of the
+                                         ///< fixed points, not the given free positions (default true)
+  bool multigrid_directional = false;  ///< multigrid: precondition by directional stiffness (Hessian
+                                       ///< diagonal blocks), not the Laplacian (default false: slower)
+  int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each coarse
+                                      ///< correction, 1..20 (default 1: faster than 2)
+  int coarse_start_points = 4096;  ///< static momentum: above this many points, start from the settled
+                                  ///< every-other-point lattice (coarse_start.h); 0 off, >= 8 (default 4096)
+  double coarse_start_tolerance = 1e-6;  ///< coarse lattices' residual (at least tolerance), (0, 1)
+                                         ///< (default 1e-6: model-26 lattices need accurate coarse starts)
+  /// Model-6 coarse start: offset each interpolated free point by a fixed hashed jitter of this share of
+  /// the rest length, [0, 1], 0 = none (default 0.2: a smooth start sits near a saddle when springs buckle).
   double coarse_start_perturbation = 0.2;
   int multigrid_coarsest_points = 4096;  ///< multigrid: levels of at most this many points are
                                          ///< solved directly, 8..200000 (default 4096)
