@@ -85,10 +85,8 @@ nlohmann::json align_template(const Vec3& target_origin, const Vec3& target_inse
   SphereMapOptions template_options = options;
   template_options.method = SphereMethod::tutte;
   // The lattice is a box whose attachment faces are its two ends: the tube start (cut end to end)
-  // puts them on the poles, whatever --sphere-start says for the muscle. Measured on the sample
-  // muscle: insertion error after alignment 0.003 deg with the tube start, 0.002 with the
-  // stereographic one (the default for this box until the progressive start), 4.3 with the
-  // progressive one, whose map of the box is not symmetric.
+  // puts them on the poles, whatever --sphere-start says for the muscle; the progressive start's
+  // map of the box is not symmetric and would misalign the insertion by degrees.
   template_options.start = SphereStart::automatic;
   template_options.tube_elongation = 0.0;
   SphereMap map = map_to_sphere(surface, template_options);

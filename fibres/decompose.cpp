@@ -160,8 +160,7 @@ namespace {
 // instead.
 // The face's rim (its surface-ring points) is cast with the ends, from the same layer or fit one
 // index step beyond them (cast_rim): the placement's depth rule can shrink a face to a few percent
-// of its region (VHF psoas: 6 % and 9 %), and a rim left there lies inside the cast ends, so that
-// the cells between them fold (VHF psoas: 72 inverted cells, 0 with the rim cast).
+// of its region, and a rim left there lies inside the cast ends, so that the cells between fold.
 // lambda starts at 1 and shrinks by 0.8 until every end lies within `radius` of an attachment-area
 // point (at most 20 times). When no lambda fits along the end axis (an end that bends away from
 // it), the axis from the layer's centroid to the area's centre is tried, then the axis to the
@@ -356,17 +355,12 @@ springs::SettleOptions DecomposeOptions::default_settle() {
   s.solver = springs::SolverKind::static_equilibrium;
   s.tolerance = 1e-6;
   s.max_iterations = 20000;
-  // A settle that does not depend on the processor's vector instructions (the portable loop is the
-  // same bit for bit everywhere; libm's processor-specific variants elsewhere may still round
-  // differently in rare cases): the untangling after the settle turns last-bit differences
-  // of the settled lattice into different folds (the opendihu biceps tracer: 0 folded cells with
-  // the portable loop, 25 with the AVX2 loop, one try, 2026-11-22, docs/BENCHMARKS.md "Spring loop
-  // for processors without AVX-512"), and a lattice of a few thousand points settles in
-  // milliseconds with either loop.
+  // The portable loop, the same bit for bit on every processor: the untangling turns last-bit
+  // differences of the settled lattice into different folds, and a lattice of a few thousand
+  // points settles in milliseconds with either loop.
   s.portable_loop = true;
-  // Lattices above coarse_start_points start from their coarse lattice's equilibrium unperturbed,
-  // as they were measured (docs/BENCHMARKS.md, "Decompose"): a decomposition's lattice is under
-  // tension, not the compressed lattice whose buckling the perturbation starts.
+  // Coarse starts unperturbed: a decomposition's lattice is under tension, not the compressed
+  // lattice whose buckling the perturbation is for.
   s.coarse_start_perturbation = 0.0;
   return s;
 }
@@ -917,10 +911,9 @@ bool better_result(const CheckReport& a, const CheckReport& b) {
 std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmarks_given) {
   std::vector<RetryStep> plan;
   if (options.retry_alternative) plan.push_back({"alternative_placement", alternative_placement(options), true, false});
-  // The face rims left where the placement put them (the cast before 2026-11-22): casting them
-  // opens the folds next to narrow ends (VHF psoas, vastus intermedius, VHM quadratus femoris)
-  // but folds 2 cells of VHM obturator internus, which pass with the rims left. Gated as the
-  // alternative is: after a badly folded first try it has not helped (DecomposeOptions).
+  // The face rims left where the placement put them: casting them opens the folds next to narrow
+  // ends but folds a few muscles that pass with the rims left. Gated as the alternative is: after a
+  // badly folded first try it has not helped (DecomposeOptions::retry_max_inverted_cells).
   if (options.retry_alternative && options.cast_rim) {
     DecomposeOptions retry = options;
     retry.cast_rim = false;
@@ -1026,8 +1019,8 @@ PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const
   }
   // A layer of fibre segments several times the others (the rings skipped a stretch of the
   // muscle, as where a tendon hooks): the first try once more with the rings placed by meridian,
-  // and, unless that is kept and passes, the kept try's options with them too (the meridian
-  // placement passes the LHDL psoas with one or the other, depending on round-off).
+  // and, unless that is kept and passes, the kept try's options with them too (which of the two
+  // passes can depend on round-off).
   const auto layers = [](const Decomposition& d) { return d.report.quality.steps.layer_ratio; };
   if (options.even_layers_ratio > 0.0 && options.placement.band_by_length && !options.placement.meridian_rings &&
       layers(best) > options.even_layers_ratio) {

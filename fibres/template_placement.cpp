@@ -496,9 +496,9 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     // the origin region to the insertion region) the lateral rings go to even shares of the
     // meridian's length on the muscle (through the area-weighted face centres of meridian_steps
     // levels, over a window of three of kMeridians azimuth sectors), instead of one share per
-    // level for all azimuths. Where the sphere map's levels run obliquely along a thin tendon
-    // (LHDL psoas: a level 1/125 of the band wide spans 78 mm of its tendon), a ring at one level
-    // for all azimuths skips most of the tendon (a 66-70 mm layer followed by a 2.5-3.3 mm one).
+    // level for all azimuths. Where the sphere map's levels run obliquely along a thin tendon (a
+    // narrow level can span much of it), a ring at one level for all azimuths skips most of the
+    // tendon: one very long layer followed by a very short one.
     // Levels along each meridian: at most 48, fewer on a coarse mesh (about 6 faces a sector
     // and level, 18 in its window), at least 12.
     const int meridian_steps = std::clamp(static_cast<int>(n_faces / (6 * kMeridians)), 12, 48);

@@ -23,10 +23,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Active tetrahedra from which an energy evaluation runs in parallel (below that the threads'
-// start costs more than they save; 2048 before the terms were split in whole vectors: the
-// containment rounds' few hundred points, 3 of the LHDL gluteus maximus's 4 untangle runs, ran
-// on one thread).
+// Active tetrahedra from which an energy evaluation runs in parallel: below that the threads'
+// start costs more than they save; low enough that the containment rounds' few hundred points
+// still run in parallel.
 constexpr std::size_t kParallelTets = 256;
 
 // Tetrahedra whose energy terms are computed step by step together (Energy::evaluate).
@@ -554,9 +553,9 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       const double mu = (1.0 - sigma) * chi(now.min_det, eps);
       eps = now.min_det < mu ? 2.0 * std::sqrt(mu * (mu - now.min_det)) : kSmallestEps;
       eps = std::max(eps, kSmallestEps);
-      // The containment tightens each stage that leaves a point outside (raised only once every
-      // tetrahedron was positive, it never was where one fold outlasted the stages, and hundreds of
-      // points went out: LHDL psoas 51 folded cells after the pins, opendihu left biceps 123).
+      // The containment tightens each stage that leaves a point outside, not only once every
+      // tetrahedron is positive: where one fold outlasts the stages that never happens, and
+      // hundreds of points go out and are pinned, folding cells.
       if (outside > 0)
         energy.containment_scale = std::min(containment.max_scale, energy.containment_scale * containment.growth);
       e_prev = energy.evaluate(x, eps, nullptr);

@@ -405,10 +405,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     };
     // Containment inside the energy (containment_energy): the free points near the surface or
     // outside it, renewed each round, but the ring (held by its plane pins; it starts on the
-    // surface, half of it just outside, and its containment pulled against the unfolding: opendihu
-    // left biceps 14 -> 95 folded cells) and the fibre ends (held by their area pins and clamped
-    // onto the surface at the end). The points are listed in index order (the result must not
-    // depend on a hash map's order).
+    // surface, half of it just outside, and its containment pulled against the unfolding) and
+    // the fibre ends (held by their area pins and clamped onto the surface at the end). The points
+    // are listed in index order (the result must not depend on a hash map's order).
     UntangleContainment containment;
     if (contain) {
       SignedDistanceGrid& field = grid();
@@ -654,8 +653,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     }
   };
   // The ring is freed only after the attempts with it held: a freed ring moves the surface lines,
-  // which changes the coverage of muscles the held ring already unfolds (VHF vastus lateralis:
-  // coverage p95 1.69 -> 2.30 when the first free attempt freed it).
+  // which raises the coverage p95 of muscles the held ring already unfolds.
   const bool everywhere = options.containment_energy && options.containment_energy_everywhere;
   run_from(settled, false, false, everywhere, "held_ends");
   if (inverted_left > 0) {

@@ -39,8 +39,8 @@ bool conformal_enough(const TriangleMesh& mesh, const std::vector<Vec3>& before,
 // det(p, b, d) relative to p, ((b - p) x (d - p)) . p, in scalars: the operations of Eigen's
 // cross and dot on Vec3 in their order (the dot as (c0 p0 + c1 p1) + c2 p2), so the same bits;
 // written out so the compiler keeps them in registers (the Eigen form stored the cross product
-// and reloaded it as a pair, a store the processor could not forward: about a seventh of the
-// balancing's samples in `fascicle bench sphere`, docs/BENCHMARKS.md).
+// and reloaded it as a pair, a store the processor could not forward; measured by
+// `fascicle bench sphere`, docs/BENCHMARKS.md).
 inline double star_det(const Vec3& b, const Vec3& d, const Vec3& p) {
   const double u0 = b[0] - p[0], u1 = b[1] - p[1], u2 = b[2] - p[2];
   const double w0 = d[0] - p[0], w1 = d[1] - p[1], w2 = d[2] - p[2];

@@ -7,8 +7,8 @@
 // between the halves is evaluated by both, each adding to its own end), so every point's force
 // is still summed in the same order, whatever the threads. The momentum's power (only its sign
 // is used: a restart where it turns negative) is the sum of the two halves' sums, the same
-// whatever the threads but not rounded as one sum over all points was (the 47 corpus
-// decompositions gave byte-identical fibres both ways).
+// whatever the threads, though rounded differently from one sum over all points (harmless: only
+// the sign decides).
 
 #include "geometry/errors.h"
 #include "springs/solvers_internal.h"

@@ -8,8 +8,8 @@
 // - Model-26 order: a group's three springs are made one after another, each added into the
 //   point's own sum and the group's push at once, and the dx = -1 sum starts from minus the
 //   along-x force. The AVX-512 loop holds the group's three springs at once and sums in another
-//   order; with AVX2's 16 vector registers that spilled (about 15 % less time at 50^3 on one
-//   thread, docs/BENCHMARKS.md). The sums differ from the AVX-512 loop's by rounding.
+//   order; with AVX2's 16 vector registers that spilled (measured by `fascicle bench springs`,
+//   docs/BENCHMARKS.md). The sums differ from the AVX-512 loop's by rounding.
 // - 1 / |l|: AVX2 has no double-precision estimate of the inverse square root. The estimate is
 //   VRSQRTPS of l2 rounded to single precision (relative error below 1.5 * 2^-12), refined in
 //   double by one fourth-order step y = y0 (1 + e/2 + 3/8 e^2 + 5/16 e^3), e = 1 - l2 y0^2

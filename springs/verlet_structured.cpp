@@ -261,8 +261,8 @@ __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m,
 // step y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2):
 // relative error below 5/16 e0^3, about 6e-13, plus rounding. It is folded into w as
 // k - y0 (1 + e (1/2 + 3/8 e)): after e, three FMA-class operations where
-// (k - y0) - (y0 e)(1/2 + 3/8 e) took a multiplication, two FMAs and a subtraction; 2-3 % less
-// processor time at 100^3 model-26 on one thread (docs/BENCHMARKS.md, 2026-11-22 03:48 UTC).
+// (k - y0) - (y0 e)(1/2 + 3/8 e) takes a multiplication, two FMAs and a subtraction (measured
+// by `fascicle bench springs`, docs/BENCHMARKS.md).
 // Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path). Explicit FMAs; the
 // library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
 template <bool Masked>
@@ -676,11 +676,9 @@ class StructuredVerlet final : public SpringSolver {
     // Tiles of whole rows: slabs of planes (a slab re-evaluates the forward springs of the plane
     // before it: 9 of the 13 model-26 directions, one plane a slab) x strips of at most 25 rows
     // (a strip re-evaluates the pushes of the rows on both sides: 9 springs a plane), 2 slabs per
-    // thread. Strips keep a task's positions and accumulators in the second-level cache. At
-    // 100^3 on 2 threads that is 4 x 4 tiles of 25 x 25 rows (8 per thread), about 5.8 % of the
-    // springs evaluated twice, against 9.3 % with the 8 x 5 tiles of 13 x 20 rows used before
-    // (3-4 % less one-thread processor time, docs/BENCHMARKS.md, 2026-11-22 06:50 UTC). The
-    // result does not depend on the tiles.
+    // thread. Strips keep a task's positions and accumulators in the second-level cache; wider
+    // strips evaluate fewer springs twice (at 100^3 on 2 threads 4 x 4 tiles of 25 x 25 rows,
+    // about 5.8 % of the springs). The result does not depend on the tiles.
     const long threads = std::max(1, tbb::this_task_arena::max_concurrency());
     slab_ = std::max(2L, (shape.nz + 2 * threads - 1) / (2 * threads));
     strip_ = shape.ny;
