@@ -1,7 +1,8 @@
 // Every corpus muscle through `fascicle batch` (one decompose process per muscle, default
-// options): what the decomposition guarantees today on real data, so that a change that breaks it
-// is caught. The figures per muscle are in docs/BENCHMARKS.md ("Decompose"); the criteria the
-// method does not meet yet on every muscle (inverted cells, coverage) have floors here.
+// options): what the decomposition guarantees on real data, so that a change that breaks it is
+// caught. Hard rules (every point inside, ends on their areas, the retry ladder) hold for every
+// muscle; the criteria sensitive to round-off (passes, inverted cells, coverage) have floors
+// that leave room for one muscle. The figures per muscle: `fascicle bench decompose` (docs/BENCHMARKS.md).
 #include "tests/test_common.h"
 
 #include <catch2/catch.hpp>
@@ -32,8 +33,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     const nlohmann::json r = nlohmann::json::parse(in);
     INFO(path);
     if (!r.contains("quality")) {
-      // Refused before any fibre is made: none since the sphere map is bijective on all 47
-      // (issue 3); the LHDL psoas and the opendihu left biceps used to be refused here.
+      // Refused before any fibre is made: none expected, the sphere map being bijective on
+      // every corpus muscle (checked below: `refused` must stay empty).
       CHECK(r.value("error_code", std::string()) == "solver_diverged");
       refused.insert(entry.path().filename().string());
       continue;
@@ -89,7 +90,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     if (meridian) {
       CHECK(attempts.size() - ladder <= 2);
       ++meridian_tries;
-      // The meridian rings space the layers evenly (LHDL psoas: 1.56 against 4.08 by level).
+      // The meridian rings space the layers evenly.
       for (std::size_t i = ladder; i < attempts.size(); ++i) {
         CHECK(attempts[i]["meridian_rings"] == true);
         CHECK(attempts[i]["layer_ratio"].get<double>() < 2.0);
@@ -129,62 +130,22 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   }
   CHECK(reports == 47);
   CHECK(refused.empty());
-  // Widened ends (seventeenth session, 2026-11-27: the opendihu left biceps, biceps tracer and
-  // left triceps, LHDL iliacus, VHM left vastus intermedius; the wrap of the opendihu muscles can
-  // depend on the machine's load, README).
+  // Widened ends: at least two corpus muscles have two heads at an automatic end (the opendihu
+  // left biceps among them); room for the opendihu wraps, which can depend on the machine's load.
   CHECK(widened >= 2);
-  // Floors, not the goal (every muscle). Seventeenth session, 2026-11-27 (docs/BENCHMARKS.md,
-  // "Decompose", "Seventeenth session"), automatic ends widened to one piece: 47 of 47 pass, 47
-  // have no inverted cell, 47 have coverage p95 <= 2 (the highest: VHM left vastus intermedius
-  // 1.978, LHDL psoas 1.977). The floors keep room for one muscle: the untangling's attempts are
-  // sensitive to round-off, and the left biceps swung between 0 and 11 inverted cells with the
-  // widening's margin (morph/attachments.h). Fifteenth session, 2026-11-27 (docs/BENCHMARKS.md,
-  // "Decompose", "Fifteenth session"), with the end-share retry: 46 of 47 pass, 46 have no inverted
-  // cell, 47 have coverage p95 <= 2, 14 inverted cells in all (the opendihu left biceps; the LHDL
-  // psoas passes on its end-share retry). Tenth session, 2026-11-22 14:05-14:16 UTC (docs/BENCHMARKS.md,
-  // "Decompose", "Fibre ends in the containment energy"), the free-ring attempts retried with the
-  // containment energy where they leave folds (containment_retry): 45 of 47 pass, 45 have no
-  // inverted cell, 47 have coverage p95 <= 2, 16 inverted cells in all (LHDL psoas 2, opendihu
-  // left biceps 14; main: 33 and 123). The total's floor keeps room for round-off: these two
-  // muscles' attempts swing by tens of cells between neighbouring settings.
-  // Since 2026-11-22 (ninth session) the decomposition settles
-  // with the portable spring loop on every processor (SettleOptions::portable_loop), so these
-  // figures no longer follow the processor's vector instructions; measured then on an AVX2
-  // processor (docs/BENCHMARKS.md, "Decompose", "Merged 2026-11-22, ninth session"): 45 of 47
-  // pass, 45 have no inverted cell, 47 have coverage p95 <= 2, 156 inverted cells in all (LHDL psoas
-  // 33, opendihu left biceps 123). The figures below were measured with the AVX-512 loop in the
-  // settle, whose rounding differs. Measured on 2026-11-22 07:16-07:21 UTC (docs/BENCHMARKS.md,
-  // "Decompose", "Folds next to hooked ends"; the untangling's free-ring attempt): 45 of 47 pass
-  // every criterion, 45 have no inverted cell, 46 have coverage p95 <= 2 (the opendihu left biceps,
-  // which fails with 77 inverted cells, has 2.19), 106 inverted cells in all (LHDL psoas 29, left
-  // biceps 77; the biceps tracer passes). The untangling's attempts are sensitive to round-off,
-  // so the total's floor has more room than the others'. Measured on 2026-11-22 00:53-01:06 UTC (docs/BENCHMARKS.md,
-  // "Decompose", "Face rims cast with the fibre ends"): 44 of 47 pass every criterion, 44 have no
-  // inverted cell, 47 have coverage p95 <= 2, 642 inverted cells in all (LHDL psoas 196, opendihu
-  // biceps tracer 135, left biceps 311; the left biceps's first try varied between 199 and 313
-  // inverted cells from run to run). Before the rims were cast (2026-11-21 22:06-22:08 UTC):
-  // 40 of 47 pass every criterion, 41 have no inverted cell, 46 have coverage p95
-  // <= 2, 771 inverted cells in all (ends cast so that they turn the lattice's way, a second try
-  // with the alternative placement for a muscle that fails with at most 50 inverted cells; with
-  // the second try for every failing muscle 713, 21:15 UTC, for 18 s more batch wall time); at
-  // 19:38 the figures were 38, 38, 47 and 979, at 16:34 20, 30, 28. One below the ninth
-  // session's figures (two for coverage) and the total about 25 % above its 156: libm's
-  // processor-specific variants (glibc picks FMA versions of some functions at run time) may still
-  // round differently elsewhere, and the untangling's attempts are sensitive to round-off.
-  // Segments that leave the muscle between their points, twenty-first session, 2026-11-28
-  // (docs/BENCHMARKS.md, "Decompose", "Twenty-first session"): 1316 of 65800 without step 10,
-  // 516 with it; the ceiling keeps room for round-off (the retries and the untangling). Twenty-
-  // second session: 665, the LHDL psoas's fibres now following the hook of its tendon by meridian
-  // rings (102 -> 251 crossing segments, the deepest 6.84 % -> 3.22 % of its length).
+  // Segments that leave the muscle between their points: step 10 must cut them (crossing <
+  // crossing_before, below) and the total stay under a ceiling with room for round-off in the
+  // retries and the untangling.
   CHECK(crossing <= 900);
-  // Layers of fibre segments (twenty-second session): by level rings the psoas's longest layer
-  // was 4.08 times its median one; with the meridian try only the LHDL psoas is retried (kept:
-  // 1.56) and the largest ratio left is 2.17 (opendihu left biceps). Room for muscles whose
-  // meridian tries round-off makes fail: their ratio stays what the level rings gave.
+  // Layers of fibre segments: the meridian try fires for at least the LHDL psoas (whose tendon
+  // hooks) and few others, and no kept result has a layer far longer than its median one; room
+  // for muscles whose meridian tries round-off makes fail, keeping the level rings' ratio.
   CHECK(meridian_tries >= 1);
   CHECK(meridian_tries <= 3);
   CHECK(largest_layer_ratio <= 4.5);
   CHECK(crossing < crossing_before);
+  // Floors, not the goal (every muscle): one muscle's room, since the untangling's attempts are
+  // sensitive to round-off and swing by tens of cells between neighbouring settings.
   CHECK(passed >= 46);
   CHECK(unfolded >= 46);
   CHECK(covered >= 46);

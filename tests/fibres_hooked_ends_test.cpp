@@ -1,13 +1,10 @@
 // Folds next to bent tendon ends (decompose step 8, fibres/untangle_lattice.h): whole end layers
 // of the opendihu biceps tracer turn over, and with the surface ring held where the settle put it
-// no untangling opens them (136 inverted cells on 2026-11-22 before the free-ring attempt). The
-// attempt that frees the surface ring with the fibre ends (each ring point held just under the
-// surface and sliding along it, each end free within its attachment area's margin) unfolds them;
-// docs/BENCHMARKS.md, "Folds next to hooked ends". Since each untangling run returns the best
-// state it met (UntangleOptions::keep_best, 2026-11-29) the attempts with the ring held unfold the
-// tracer too, and so do they with 16 containment rounds (the default since 2026-11-29); the
-// free-ring attempt is shown here without keep_best and with the former 6 rounds, and the default
-// is checked to pass.
+// the untangling does not always open them. The attempt that frees the surface ring with the
+// fibre ends (each ring point held just under the surface and sliding along it, each end free
+// within its attachment area's margin) must unfold them. With the defaults (keep_best, 16
+// containment rounds) the held-ring attempts unfold the tracer too, so the free-ring attempt is
+// shown here without keep_best and with 6 rounds, and the default is checked to pass.
 #include "tests/decompose_run.h"
 #include "tests/test_common.h"
 
@@ -30,8 +27,7 @@ TEST_CASE("a biceps's bent ends: the untangling with the surface ring free leave
   INFO("without: " << without["untangle"]["kept"] << " " << without["quality"].dump());
   // The attempts with the ring held leave cells folded: the kept attempt is a free-ring one
   // ("free_ring", "free_ring_then_held_ends", or their retry with the other containment setting,
-  // "free_ring_contained..." / "free_ring_uncontained...": "free_ring_contained" is the kept one
-  // since the tracer's origin, two heads, is widened to one piece, 2026-11-27).
+  // "free_ring_contained..." / "free_ring_uncontained...").
   CHECK(without["quality"]["inverted_cells"].get<long>() > 0);
   const std::string kept = with["untangle"]["kept"].get<std::string>();
   CHECK(kept.rfind("free_ring", 0) == 0);

@@ -3,9 +3,9 @@
 // muscle's side and the default corner twist can miss the coverage criterion; the decomposition
 // then retries other twists (DecomposeOptions::landmark_twists_deg) and keeps the best result.
 // The landmark rows are joined into strips first (DecomposeOptions::strip).
-// The full matrix (4 muscles x 5 templates) is measured in docs/BENCHMARKS.md, "Decompose"; this
-// test runs the part of it that is cheap enough for CI on 2 cores, with floors one below what was
-// measured there.
+// The full matrix (4 muscles x 5 templates) is measured by `fascicle bench decompose`
+// (docs/BENCHMARKS.md); this test runs the part of it that is cheap enough for CI on 2 cores,
+// with a floor that leaves room for one case.
 #include "fibres/decompose.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
@@ -155,15 +155,12 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
     const char* name;
     const char* mesh;
     springs::TemplateKind kind;
-    bool must_pass = false;  // a case a change broke before: it must pass on its own
+    bool must_pass = false;  // a case that must pass on its own (not only towards the floor)
   };
-  // Measured 2026-11-22 (docs/BENCHMARKS.md, "LHDL landmark strips"): all three pass with the
-  // landmark areas joined into strips; the curved template on the gluteus maximus failed before
-  // (coverage p95 2.13 with the landmark disks). The gluteus medius, whose origin strip runs down
-  // half the muscle, passes with its regions centred towards their far ends
-  // (PlacementOptions::landmark_centre_keep; "LHDL landmark regions centred towards their far
-  // ends": coverage p95 1.60, 2.34 with the centres in the middle of the regions); so does the
-  // iliacus with the curved template (1.79; 2.11 before).
+  // The landmark areas are joined into strips (the curved template on the gluteus maximus needs
+  // them), and the gluteus medius, whose origin strip runs down half the muscle, needs its regions
+  // centred towards their far ends (PlacementOptions::landmark_centre_keep), as does the iliacus
+  // with the curved template.
   const Case cases[] = {
       {"LHDL_R_M091_Iliacus", "LHDL_R_M091_Iliacus_smooth.365.vtk", springs::TemplateKind::parallel},
       {"LHDL_R_M081_GluteusMaximus", "LHDL_R_M081_GluteusMaximus_smooth.312.vtk", springs::TemplateKind::parallel},
@@ -230,20 +227,16 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
       CHECK(disk["attachment"]["insertion_max"].get<double>() >= strip["attachment"]["insertion_max"].get<double>());
     }
   }
-  CHECK(passed >= 4);  // measured: 5 of 5 (2 of the first 3 before the strips; the last 2 failed
-                       // before the centres moved towards the far ends)
+  CHECK(passed >= 4);  // all 5 are expected to pass; room for one swung by round-off
 }
 
 TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on the narrow meridian stage",
           "[fibres][decompose][corpus][slow]") {
-  // Measured 2026-11-28 (docs/BENCHMARKS.md, "Decompose", twenty-fifth session): every try of the
-  // plan fails (its origin strip runs down the side, its tendon hooks: at best 0 folded cells and
-  // coverage p95 2.205); the plan run again with meridian rings and edge cells of 0.5
-  // (DecomposeOptions::landmark_narrow_retry) passes. 330 s alone on 2 cores, 406 s in CI.
-  // That was with the untangling's depths measured over all springs at a point; since 2026-11-29
-  // they are measured across the fibres (LatticeUntangleOptions::across_spacing) and the first try
-  // passes (the test below), so this one keeps the old measure to exercise the stage, and the old
-  // 6 containment rounds (with 16, the default since 2026-11-29, a try before the stage passes).
+  // With the untangling's depths over all springs (across_spacing false) and 6 containment
+  // rounds, every try of the plan fails on this muscle (its origin strip runs down the side, its
+  // tendon hooks), so the plan run again with meridian rings and edge cells of 0.5
+  // (DecomposeOptions::landmark_narrow_retry) is exercised and must pass. With the defaults a try
+  // before the stage passes (the tests below). About 6 minutes on 2 cores.
   FASCICLE_REQUIRE_DATA();
   DecomposeOptions over_all_springs;
   over_all_springs.untangle.across_spacing = false;
@@ -271,10 +264,8 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
 
 TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on its first try",
           "[fibres][decompose][corpus][slow]") {
-  // Measured 2026-11-29 (docs/BENCHMARKS.md, "Decompose", twenty-sixth session): with the
-  // untangling's depths under the surface measured across the fibres the first try passes (0
-  // folded cells, coverage p95 1.372); the evener-layers try after it passes too and is kept
-  // (1.891). 17 s alone on 2 cores.
+  // With the untangling's depths measured across the fibres (the default across_spacing) the
+  // first try passes and the narrow stage never runs. About 20 s on 2 cores.
   FASCICLE_REQUIRE_DATA();
   const LandmarkRun run =
       run_lhdl("LHDL_R_M090_Psoas", "LHDL_R_M090_Psoas_smooth.415.vtk", springs::TemplateKind::parallel);
@@ -293,15 +284,12 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
 
 TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus templates passes with the containment rounds that go on",
           "[fibres][decompose][corpus][slow]") {
-  // Measured 2026-11-29 (docs/BENCHMARKS.md, "Decompose", twenty-seventh session). With 6
-  // containment rounds in the untangling, stopped by a round that folded no fewer cells, every try
-  // of these three pairs ended with hundreds of points outside, and the pins that then took them
-  // folded cells (best 9, 6 and 16). With 16 rounds (LatticeUntangleOptions::contact_rounds) that
-  // stop only when the points outside stall too (fold_stall_needs_outside_stall), the defaults
-  // now, the whole plan passes, on the narrow stage's try kept here: meridian rings, edge cells
-  // of 0.5; the curved template with the strips and no twist, the fanned one with the landmark
-  // disks, the rectus one with the strips and the 67.5 degree twist. The seven tries: 90 s on 2
-  // cores.
+  // The default containment rounds (16, LatticeUntangleOptions::contact_rounds) that stop only
+  // when the points outside stall too (fold_stall_needs_outside_stall) pass each pair on the narrow
+  // stage's try run here (meridian rings, edge cells of 0.5; the curved template with the strips
+  // and no twist, the fanned one with the landmark disks, the rectus one with the strips and the
+  // 67.5 degree twist); 6 rounds stopped by a round that folds no fewer cells leave hundreds of
+  // points outside, whose pins fold cells. About 90 s on 2 cores.
   FASCICLE_REQUIRE_DATA();
   struct Pair {
     springs::TemplateKind kind;
@@ -337,12 +325,12 @@ TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus tem
     DecomposeOptions former = options;
     former.untangle.contact_rounds = 6;
     former.untangle.fold_stall_needs_outside_stall = false;
-    CHECK(run(former).result.report.quality.inverted_cells > 0);  // measured: 24, 14, 16
+    CHECK(run(former).result.report.quality.inverted_cells > 0);
     if (pair.kind == springs::TemplateKind::curved) {
       // The stop rule alone: 16 rounds that stop at the first round folding no fewer cells.
       DecomposeOptions rule = options;
       rule.untangle.fold_stall_needs_outside_stall = false;
-      CHECK(run(rule).result.report.quality.inverted_cells > 0);  // measured: 24
+      CHECK(run(rule).result.report.quality.inverted_cells > 0);
     }
   }
 }

@@ -1,9 +1,8 @@
 // Fibre ends next to a narrow tendon end (decompose step 6, `cast_faces` in fibres/decompose.cpp):
 // the rim of each attachment face is cast with its fibre ends. The placement's depth rule can
-// shrink a face to a few percent of its region (VHF psoas: 6 % and 9 %); a rim left there lies
-// inside the cast fibre ends and the cells between them fold, which the untangling with the ends
-// held cannot open (VHF psoas: 72 inverted cells with the rim left, 0 with it cast; measured
-// 2026-11-22, docs/BENCHMARKS.md, "Decompose", "Face rims cast with the fibre ends").
+// shrink a face to a few percent of its region (as on the VHF psoas used here); a rim left there
+// lies inside the cast fibre ends and the cells between them fold, which the untangling with the
+// ends held cannot open.
 #include "tests/decompose_run.h"
 #include "tests/test_common.h"
 
@@ -19,10 +18,8 @@ TEST_CASE("a psoas's narrow ends: face rims cast with the fibre ends leave no fo
   const std::string muscle = test::data_dir() + "/muscles/visible-human/VHF_Left/VHF_Left_Muscle_PsoasMajor_smooth.stl";
   test::TempDir with_dir, without_dir;
   const nlohmann::json with = decompose_report(muscle, with_dir.path().string(), "");
-  // Without the rims cast, with the surface ring held in the untangling: since 2026-11-22 the
-  // untangling's free-ring attempt opens these folds too (0 inverted cells with the rims left;
-  // 7 with the ring held, 46 with the ends also kept near their cast places: docs/BENCHMARKS.md,
-  // "Folds next to hooked ends"), so the ring is held here to show what the cast rims do.
+  // Without the rims cast, with the surface ring held in the untangling: the free-ring attempt
+  // would open these folds too, so the ring is held here to show what the cast rims do.
   const nlohmann::json without =
       decompose_report(muscle, without_dir.path().string(), "--cast-rim false --untangle-free-ring false");
   INFO(with["settle"]["cast_faces"].dump());

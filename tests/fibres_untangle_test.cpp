@@ -557,7 +557,7 @@ TEST_CASE("signed distance grid: close to the sphere's distance, gradient along 
 TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells comes out unfolded",
           "[fibres][untangle][data]") {
   FASCICLE_REQUIRE_DATA();
-  // VHM left rectus femoris: the settle leaves 5 cells folded (2026-11-21).
+  // VHM left rectus femoris: the settle leaves a few cells folded, which the untangling opens.
   const PolygonSoup soup =
       read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_RectusFemoris_smooth.stl");
   DecomposeOptions options;
@@ -665,8 +665,8 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
           "[fibres][untangle][data]") {
   FASCICLE_REQUIRE_DATA();
   // LHDL right gluteus medius: the untangling leaves points outside that must be fixed just
-  // inside; fixed after the untangling, those pins fold cells (VHM gracilis: 2 cells before
-  // 2026-11-21). Now the cells around them are untangled again with the pins fixed.
+  // inside; pins fixed after the untangling can fold cells, so the cells around them are
+  // untangled again with the pins fixed (LatticeUntangleOptions::pin_rounds).
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
   DecomposeOptions options;
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
@@ -674,11 +674,11 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
   options.retry_alternative = false;  // this case is about the untangling of one placement
   options.end_share_retry = 0.0;      // (nor the end-share retry)
   options.cast_rim = false;           // the face rims as when the case was found (cast, they
-                                      // leave nothing outside to pin here: 2026-11-22)
+                                      // leave nothing outside to pin here)
   options.untangle.sliding_contact = false;  // the containment pins as when the case was found
                                              // (sliding, they bring every point in here)
   options.untangle.contact_rounds = 6;       // the rounds as when the case was found (16, the
-                                             // default since 2026-11-29, bring every point in)
+                                             // default, bring every point in)
   const Decomposition d = decompose(soup, {}, options);
   const nlohmann::json u = d.report.to_json()["untangle"];
   INFO(u.dump());
@@ -693,11 +693,9 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
 TEST_CASE("untangle in the decomposition: containment rounds that make progress are not stopped by the stall rule",
           "[fibres][untangle][data]") {
   FASCICLE_REQUIRE_DATA();
-  // LHDL right gluteus maximus. Before the face rims were cast (2026-11-22) the soft pins of its
-  // rounds 3 to 6 left 14, 16, 17, 18 points outside after 12, and contact_stall_rounds 2 (off
-  // by default: it folded two other corpus muscles) stopped them early. With the rims cast every
-  // round leaves fewer points outside (10, 5, 1, 0), so the stall rule must not fire: the same
-  // rounds, the same result.
+  // LHDL right gluteus maximus: with the face rims cast every containment round leaves fewer
+  // points outside, so the stall rule (contact_stall_rounds 2; off by default) must not fire:
+  // the same rounds, the same result.
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement
@@ -775,9 +773,8 @@ TEST_CASE("untangle in the decomposition: the free-ring attempts run again with 
           "[fibres][untangle][data][slow]") {
   FASCICLE_REQUIRE_DATA();
   // LHDL right psoas: with the surface ring free and without the containment energy, 33 cells stay
-  // folded (the pins at the end fold them: 53 tetrahedra); the retry with the containment energy
-  // leaves 2 (docs/BENCHMARKS.md, "Decompose", 2026-11-22, tenth session). Without the retry
-  // (containment_retry false) the contained attempts never run and the 33 stay.
+  // folded (the pins at the end fold them); the retry with the containment energy must leave fewer.
+  // Without the retry (containment_retry false) the contained attempts never run.
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
   options.retry_alternative = false;  // this case is about the untangling of one placement

@@ -1,8 +1,7 @@
 // Every corpus muscle, after repair, maps onto the sphere with no flipped and no degenerate
-// triangle (the thesis managed 3 of its muscles). The LHDL psoas and the opendihu left biceps
-// used to fail (flat slivers near one end that every lift bending lines into latitude circles
-// turns over, docs/BENCHMARKS.md "Sphere map"); the tube start still fails on them, and they
-// must come out bijective from the progressive-mesh fallback.
+// triangle (the thesis managed 3 of its muscles). On the LHDL psoas and the opendihu left biceps
+// the tube start fails (flat slivers near one end that every lift bending lines into latitude
+// circles turns over), and they must come out bijective from the progressive-mesh fallback.
 #include "geometry/mesh_io.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"

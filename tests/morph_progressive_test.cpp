@@ -235,9 +235,8 @@ TEST_CASE("sphere start option is parsed, validated and reported", "[morph]") {
 
 TEST_CASE("automatic start falls back to the progressive start where the tube start fails", "[morph]") {
   // A short wide tube of 160 vertices per ring whose ends are 3-vertex rings round a tip: each
-  // vertex next to a tip fans out over a third of the circumference in flat slivers, as at the
-  // failing end of the LHDL psoas (docs/BENCHMARKS.md, "Sphere map"); both tube folds leave
-  // flipped triangles there.
+  // vertex next to a tip fans out over a third of the circumference in flat slivers, as at a
+  // hooked muscle end; both tube folds leave flipped triangles there.
   std::vector<std::tuple<int, double, double>> rings;
   rings.emplace_back(3, 0.1, 0.1);
   for (int k = 0; k <= 120; ++k) rings.emplace_back(160, 1.0, 0.2 + 4.0 * k / 120);

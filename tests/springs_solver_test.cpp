@@ -641,8 +641,8 @@ TEST_CASE("solver errors and option errors", "[springs][solver]") {
 
 namespace {
 
-// The bench problem of docs/BENCHMARKS.md: a regular n^3 lattice of the unit cube whose boundary
-// is moved by a smooth non-affine map (stretch, squeeze, bend, shear).
+// The problem of `fascicle bench springs` (docs/BENCHMARKS.md): a regular n^3 lattice of the unit
+// cube whose boundary is moved by a smooth non-affine map (stretch, squeeze, bend, shear).
 Lattice moved_cube(int n, SpringModel model) {
   Lattice lattice = regular_lattice(n, model, 1.0 / (n - 1), 1.0, true);
   for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
