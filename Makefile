@@ -4,6 +4,8 @@
 #               muscles (CTest label unit)
 #   make test-corpus   the corpus tier: every corpus muscle, the [slow] and [stress] cases (label corpus)
 #   make install PREFIX=DIR   builds and installs the program in DIR/bin, its libraries in DIR/lib
+#   make bench   every bench program into docs/bench/*.json, then docs/BENCHMARKS.md from them
+#                (scripts/bench.sh; BENCH_SECTIONS="repair sphere ..." for some parts only)
 # Reliability (docs/RELIABILITY.md):
 #   make test-sanitize   the test suite built with ASan+UBSan (-O1 -g1) in build-sanitize/ ([slow], [no-sanitize] excluded)
 #   make test-sanitize-geometry   the CGAL-free tests only under ASan+UBSan (minutes, for CI)
@@ -16,7 +18,7 @@ BUILD_TYPE ?= Release
 DEMO_DIR ?= demo-out
 PREFIX ?= /usr/local
 
-.PHONY: all deps configure build test test-corpus demo install clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
+.PHONY: all deps configure build test test-corpus bench demo install clean test-sanitize sanitize-build test-sanitize-geometry fuzz stress
 
 SANITIZE_BUILD ?= build-sanitize
 FUZZ_BUILD ?= build-fuzz
@@ -40,6 +42,9 @@ test: build
 
 test-corpus: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L corpus
+
+bench: build
+	@bash scripts/bench.sh $(BUILD) ../shared/data docs/bench
 
 install: build
 	@cmake --install $(BUILD) --prefix $(PREFIX)

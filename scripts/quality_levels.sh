@@ -55,5 +55,16 @@ turn = statistics.median(c["turning"]["max_deg"] for c in checks) if checks else
 shape = "%d x %d" % (checks[0]["fibres"], checks[0]["points"] // checks[0]["fibres"]) if checks else "-"
 print("| %s | %s | %.0f s | %d of %d | %d of %d | %d | %d | %d | %.2f | %.0f deg |" %
       (level, shape, seconds, decompose_ok, muscles, passed, len(checks), segments, turning, ends, coverage, turn))
+json.dump({"level": level, "lattice": shape, "batch_seconds": seconds, "muscles": muscles,
+           "decompose_ok": decompose_ok, "checked": len(checks), "check_pass": passed,
+           "segments_out": segments, "turning_over_45": turning, "ends_under_025": ends,
+           "median_coverage_p95": coverage, "median_turning_deg": turn}, open(folder + ".json", "w"))
 PY
 done
+# QUALITY_JSON=F: the rows as one JSON list too (scripts/bench.sh).
+if [ -n "${QUALITY_JSON:-}" ]; then
+  rows=()
+  for level in "${levels[@]}"; do rows+=("$out/$level.json"); done
+  python3 -c 'import json, sys; json.dump([json.load(open(p)) for p in sys.argv[2:]], open(sys.argv[1], "w"), indent=1)' \
+    "$QUALITY_JSON" "${rows[@]}"
+fi
