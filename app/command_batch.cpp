@@ -47,8 +47,8 @@ struct BatchArgs {
 };
 
 struct Muscle {
-  std::string input, name;              // name: path relative to the input folder, no extension
-  std::string origin, insertion;        // landmark files, when used
+  std::string input, name;        // name: path relative to the input folder, no extension
+  std::string origin, insertion;  // landmark files, when used
 };
 
 struct Outcome {
@@ -65,7 +65,8 @@ struct Outcome {
 
 bool is_mesh(const fs::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext == ".off" || ext == ".obj" || ext == ".stl" || ext == ".ply" || ext == ".vtk";
 }
 
@@ -114,16 +115,18 @@ std::vector<Muscle> list_muscles(const BatchArgs& args) {
       fs::path p = line.substr(first, last - first + 1);
       if (p.is_relative()) p = input.parent_path() / p;
       if (!fs::exists(p))
-        throw InputError(ErrorCode::file_missing, args.input + ":" + std::to_string(number) + ": " + p.string() +
-                                                      ": no such file");
+        throw InputError(ErrorCode::file_missing,
+                         args.input + ":" + std::to_string(number) + ": " + p.string() + ": no such file");
       muscles.push_back({p.string(), p.stem().string(), "", ""});
     }
   }
   std::sort(muscles.begin(), muscles.end(), [](const Muscle& a, const Muscle& b) { return a.name < b.name; });
   for (std::size_t i = 1; i < muscles.size(); ++i)
     if (muscles[i].name == muscles[i - 1].name)
-      throw InputError(ErrorCode::malformed, args.input + ": two muscles would share the output name " + muscles[i].name);
-  if (muscles.empty()) throw InputError(ErrorCode::file_empty, args.input + ": no mesh files (off, obj, stl, ply, vtk)");
+      throw InputError(ErrorCode::malformed,
+                       args.input + ": two muscles would share the output name " + muscles[i].name);
+  if (muscles.empty())
+    throw InputError(ErrorCode::file_empty, args.input + ": no mesh files (off, obj, stl, ply, vtk)");
   if (args.landmarks == "beside")
     for (Muscle& m : muscles) find_landmarks(m);
   return muscles;
@@ -223,7 +226,8 @@ std::string file_bytes(const std::string& path) {
 // options forwarded and the fibre format. A report made from another request is redone.
 std::string request_fingerprint(const Muscle& m, const BatchArgs& args) {
   std::uint64_t h = fnv1a(file_bytes(m.input));
-  for (const std::string& path : {m.origin, m.insertion}) h = fnv1a(path.empty() ? std::string("-") : file_bytes(path), h);
+  for (const std::string& path : {m.origin, m.insertion})
+    h = fnv1a(path.empty() ? std::string("-") : file_bytes(path), h);
   for (const std::string& option : args.forwarded) h = fnv1a(option + '\0', h);
   h = fnv1a("format=" + args.format, h);
   h = fnv1a(args.keep_failed ? "keep-failed" : "", h);
@@ -240,9 +244,7 @@ void record_batch(const std::string& report_path, const std::string& fingerprint
     std::ifstream in(report_path);
     try {
       if (in) r = nlohmann::json::parse(in);
-    } catch (const std::exception&) {
-      r = nlohmann::json::object();
-    }
+    } catch (const std::exception&) { r = nlohmann::json::object(); }
   }
   if (!r.is_object()) r = nlohmann::json::object();
   if (!r.contains("status")) r["status"] = o.status;
@@ -260,9 +262,7 @@ std::string recorded_fingerprint(const std::string& report_path, Outcome& o) {
     o.exit_code = r["batch"].value("exit_code", o.exit_code);
     o.seconds = r["batch"].value("seconds", o.seconds);
     return r["batch"].value("fingerprint", std::string());
-  } catch (const std::exception&) {
-    return "";
-  }
+  } catch (const std::exception&) { return ""; }
 }
 
 // The OpenSim muscle parameters of every muscle that passed, as the Thelen 2003 and Millard 2012
@@ -275,8 +275,8 @@ void write_opensim(const std::string& path, const std::vector<Muscle>& muscles, 
     for (std::size_t i = 0; i < muscles.size(); ++i) {
       const Outcome& o = outcomes[i];
       if (o.status != "ok" || !std::isfinite(o.fibre_length_m)) continue;
-      out << csv_field(muscles[i].name) << ',' << o.fibre_length_m << ',' << o.pennation_deg * 3.14159265358979323846 / 180.0
-          << ',' << o.max_force_n << '\n';
+      out << csv_field(muscles[i].name) << ',' << o.fibre_length_m << ','
+          << o.pennation_deg * 3.14159265358979323846 / 180.0 << ',' << o.max_force_n << '\n';
     }
   });
 }
@@ -317,15 +317,21 @@ int remove_stale_temporaries(const std::string& folder) {
 }
 
 void run_batch(const BatchArgs& args) {
-  if (args.jobs < 1 || args.jobs > 256) throw OptionError("--jobs: must be in 1..256, got " + std::to_string(args.jobs));
+  if (args.jobs < 1 || args.jobs > 256)
+    throw OptionError("--jobs: must be in 1..256, got " + std::to_string(args.jobs));
   if (!(args.time_limit >= 0.0)) throw OptionError("--muscle-time-limit: must be >= 0");
   const std::vector<Muscle> muscles = list_muscles(args);
   fs::create_directories(args.output);
   const std::string program = self_path();
   // The options once, before any muscle: a bad value is one error, not a failed report per muscle.
   {
-    std::vector<std::string> argv = {program, "-q", "decompose", muscles.front().input, "-o",
-                                     (fs::path(args.output) / ("check." + args.format)).string(), "--check-options"};
+    std::vector<std::string> argv = {program,
+                                     "-q",
+                                     "decompose",
+                                     muscles.front().input,
+                                     "-o",
+                                     (fs::path(args.output) / ("check." + args.format)).string(),
+                                     "--check-options"};
     argv.insert(argv.end(), args.forwarded.begin(), args.forwarded.end());
     const std::string log = (fs::path(args.output) / ".options.log").string();
     const int code = run_process(argv, log);
@@ -403,8 +409,10 @@ void run_batch(const BatchArgs& args) {
         o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         read_outcome(report, o);
         o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        if (o.exit_code == 0) o.status = "ok";
-        else if (o.status == "ok" || o.status == "not run") o.status = "failed";
+        if (o.exit_code == 0)
+          o.status = "ok";
+        else if (o.status == "ok" || o.status == "not run")
+          o.status = "failed";
         if (o.error.empty() && o.exit_code != 0) {
           std::ifstream log(base.string() + ".log");
           std::string line, last;
@@ -430,12 +438,13 @@ void run_batch(const BatchArgs& args) {
   if (tty) std::fprintf(stderr, "\n");
   write_opensim((fs::path(args.output) / "opensim.csv").string(), muscles, outcomes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("batch: {} muscles, {} ok, {} failed, {} skipped (already done with these options){} in {:.1f} s; "
-               "summary in {}",
-               muscles.size(), muscles.size() - static_cast<std::size_t>(failed.load()), failed.load(), skipped.load(),
-               redone.load() > 0 ? ", " + std::to_string(redone.load()) + " redone (their options, format or input changed)"
-                                 : std::string(),
-               seconds, summary);
+  spdlog::info(
+      "batch: {} muscles, {} ok, {} failed, {} skipped (already done with these options){} in {:.1f} s; "
+      "summary in {}",
+      muscles.size(), muscles.size() - static_cast<std::size_t>(failed.load()), failed.load(), skipped.load(),
+      redone.load() > 0 ? ", " + std::to_string(redone.load()) + " redone (their options, format or input changed)"
+                        : std::string(),
+      seconds, summary);
   if (failed.load() > 0) {
     // 19 when every failure is the quality check's; else the exit code of the first muscle that
     // failed otherwise (a repair that failed, a time limit, a crash).
@@ -480,9 +489,10 @@ void add_batch_command(CLI::App& app) {
   const CLI::App* decompose = mirror.get_subcommand("decompose");
   for (const CLI::Option* option : decompose->get_options()) {
     const std::string name = option->get_name();
-    if (option->get_positional() || name == "--help" || name == "-h,--help" || name == "--output" || name == "-o,--output" ||
-        name == "--report" || name == "--write-repaired" || name == "--origin" || name == "--insertion" ||
-        name == "--keep-failed" || name == "--check-options" || name == "--architecture" || name == "--fe-mesh")
+    if (option->get_positional() || name == "--help" || name == "-h,--help" || name == "--output" ||
+        name == "-o,--output" || name == "--report" || name == "--write-repaired" || name == "--origin" ||
+        name == "--insertion" || name == "--keep-failed" || name == "--check-options" || name == "--architecture" ||
+        name == "--fe-mesh")
       continue;
     const std::string flag = option->get_lnames().empty() ? name : "--" + option->get_lnames().front();
     auto seen = std::make_shared<bool>(false);

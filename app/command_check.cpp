@@ -63,8 +63,8 @@ void run_check(const CheckArgs& args) {
     check_output_path(args.architecture);
     const std::string ext = lower_extension(args.architecture);
     if (ext != "json" && ext != "csv")
-      throw InputError(ErrorCode::unknown_format, args.architecture + ": cannot write the architecture as '" + ext +
-                                                      "' (use .json or .csv)");
+      throw InputError(ErrorCode::unknown_format,
+                       args.architecture + ": cannot write the architecture as '" + ext + "' (use .json or .csv)");
   }
   const Polylines fibres = read_polylines(args.fibres);
   spdlog::info("read {}: {} fibres", args.fibres, fibres.lines.size());
@@ -76,13 +76,13 @@ void run_check(const CheckArgs& args) {
     spdlog::info("{} is not a closed genus-0 manifold ({}): repairing it with default options", args.muscle, problem);
     RepairResult result = repair_mesh(soup, RepairOptions{});
     muscle = std::move(result.mesh);
-    spdlog::info("repaired {}: {} vertices, {} triangles", args.muscle, muscle.positions.size(), muscle.triangles.size());
+    spdlog::info("repaired {}: {} vertices, {} triangles", args.muscle, muscle.positions.size(),
+                 muscle.triangles.size());
   }
-  Attachments areas =
-      args.origin.empty()
-          ? automatic_attachments(muscle, args.attachments)
-          : landmark_attachments(muscle, read_points(args.origin), args.origin, read_points(args.insertion),
-                                 args.insertion, args.attachments);
+  Attachments areas = args.origin.empty()
+                          ? automatic_attachments(muscle, args.attachments)
+                          : landmark_attachments(muscle, read_points(args.origin), args.origin,
+                                                 read_points(args.insertion), args.insertion, args.attachments);
   // Landmark areas are measured as `fascicle decompose` measures them: joined into strips along
   // their spanning tree (fibres/landmark_strip.h), unless --landmark-strip false.
   const SurfaceQuery query(muscle);
@@ -97,12 +97,9 @@ void run_check(const CheckArgs& args) {
   json["muscle_file"] = args.muscle;
   json["muscle_repaired"] = repaired;
   json["architecture"] = architecture.to_json();
-  json["areas"] = {{"origin", areas.origin.source},
-                   {"insertion", areas.insertion.source},
-                   {"automatic", areas.automatic},
-                   {"landmark_strip", strips},
-                   {"origin_area", areas.origin.to_json()},
-                   {"insertion_area", areas.insertion.to_json()}};
+  json["areas"] = {{"origin", areas.origin.source},         {"insertion", areas.insertion.source},
+                   {"automatic", areas.automatic},          {"landmark_strip", strips},
+                   {"origin_area", areas.origin.to_json()}, {"insertion_area", areas.insertion.to_json()}};
   if (!strip_report.is_null()) json["areas"]["strip"] = strip_report;
   if (!args.report.empty()) write_json_report(args.report, json);
   if (!args.architecture.empty()) write_architecture(args.architecture, architecture);
@@ -113,11 +110,12 @@ void run_check(const CheckArgs& args) {
     std::printf("%s\n", report.summary().c_str());
   } else {
     std::printf("%s", report.to_table().c_str());
-    std::printf("architecture: fibre length %.4g mm (sd %.3g), muscle length %.4g mm, pennation %.3g deg (sd %.3g), "
-                "PCSA %.4g cm^2, maximum isometric force %.4g N\n",
-                architecture.fibre_length_m.mean * 1e3, architecture.fibre_length_m.sd * 1e3,
-                architecture.muscle_length_m * 1e3, architecture.pennation_deg.mean, architecture.pennation_deg.sd,
-                architecture.pcsa_m2 * 1e4, architecture.max_isometric_force_n);
+    std::printf(
+        "architecture: fibre length %.4g mm (sd %.3g), muscle length %.4g mm, pennation %.3g deg (sd %.3g), "
+        "PCSA %.4g cm^2, maximum isometric force %.4g N\n",
+        architecture.fibre_length_m.mean * 1e3, architecture.fibre_length_m.sd * 1e3,
+        architecture.muscle_length_m * 1e3, architecture.pennation_deg.mean, architecture.pennation_deg.sd,
+        architecture.pcsa_m2 * 1e4, architecture.max_isometric_force_n);
   }
   std::fflush(stdout);
   if (args.strict && !report.pass) {
@@ -131,9 +129,12 @@ void run_check(const CheckArgs& args) {
 
 void add_check_command(CLI::App& app) {
   auto args = std::make_shared<CheckArgs>();
-  CLI::App* cmd = app.add_subcommand("check", "Check fibres against their muscle: inside, crossing, coverage, attachment, segments, smoothness, spread of the ends");
+  CLI::App* cmd = app.add_subcommand("check",
+                                     "Check fibres against their muscle: inside, crossing, coverage, attachment, "
+                                     "segments, smoothness, spread of the ends");
   cmd->add_option("fibres", args->fibres, "Fibres (vtk, vtp, obj, csv), each from origin to insertion")->required();
-  cmd->add_option("muscle", args->muscle, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired when not closed genus 0")
+  cmd->add_option("muscle", args->muscle,
+                  "Muscle surface (off, obj, stl, ply, vtk, txt); repaired when not closed genus 0")
       ->required();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
@@ -143,7 +144,8 @@ void add_check_command(CLI::App& app) {
                   "Write the fibres' architecture (lengths, pennation, PCSA, force) to this file (.json or .csv)");
   add_architecture_options(cmd, args->architecture_options);
   cmd->add_flag("--strict", args->strict, "Exit with code 19 when a criterion fails");
-  cmd->add_flag("--summary", args->summary, "Print the one-line verdict (each criterion, its value and threshold) instead of the table");
+  cmd->add_flag("--summary", args->summary,
+                "Print the one-line verdict (each criterion, its value and threshold) instead of the table");
   cmd->add_option("--samples", args->options.coverage_samples, "Volume samples for the coverage figures")
       ->capture_default_str();
   cmd->add_option("--seed", args->options.seed, "Seed of the volume samples")->capture_default_str();

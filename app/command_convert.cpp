@@ -46,15 +46,17 @@ void add_convert_command(CLI::App& app) {
       "convert", "Convert a mesh or a fibre file between formats (no repair; a mesh's polygons become fans)");
   cmd->add_option("input", args->input, "Input mesh (off, obj, stl, ply, vtk, txt) or fibres (vtk, vtp, vtu, obj, csv)")
       ->required();
-  cmd->add_option("-o,--output", args->output, "Output in the same kind: mesh (off, obj, stl, ply, vtk) or fibres "
-                                               "(vtk, vtp, vtu, obj, csv)")
+  cmd->add_option("-o,--output", args->output,
+                  "Output in the same kind: mesh (off, obj, stl, ply, vtk) or fibres "
+                  "(vtk, vtp, vtu, obj, csv)")
       ->required();
   cmd->callback([args] {
     check_not_same_file(args->input, args->output);
     const std::string out_ext = lower_extension(args->output);
     if (!is_mesh_extension(out_ext) && !is_polyline_extension(out_ext))
-      throw InputError(ErrorCode::unknown_format, args->output + ": unknown output format '" + out_ext +
-                                                      "' (meshes: off, obj, stl, ply, vtk; fibres: vtk, vtp, vtu, obj, csv)");
+      throw InputError(ErrorCode::unknown_format,
+                       args->output + ": unknown output format '" + out_ext +
+                           "' (meshes: off, obj, stl, ply, vtk; fibres: vtk, vtp, vtu, obj, csv)");
     check_output_path(args->output);
     if (holds_polylines(args->input)) {
       if (!is_polyline_extension(out_ext))
@@ -66,8 +68,8 @@ void add_convert_command(CLI::App& app) {
       return;
     }
     if (!is_mesh_extension(out_ext) || out_ext == "txt")
-      throw InputError(ErrorCode::unknown_format, args->input + " holds a mesh, which cannot be written as '" + out_ext +
-                                                      "' (use off, obj, stl, ply or vtk)");
+      throw InputError(ErrorCode::unknown_format, args->input + " holds a mesh, which cannot be written as '" +
+                                                      out_ext + "' (use off, obj, stl, ply or vtk)");
     const PolygonSoup soup = read_polygon_soup(args->input);
     TriangleMesh mesh;
     mesh.positions = soup.points;

@@ -65,9 +65,7 @@ void run_decompose(const DecomposeArgs& args) {
         double twist = 0.0;
         try {
           twist = std::stod(v, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
+        } catch (const std::exception&) { used = 0; }
         if (used == 0 || used != v.size())
           throw OptionError("landmark_twists_deg: '" + v + "' is not a number of degrees (or give 'none' alone)");
         options.landmark_twists_deg.push_back(twist);
@@ -80,7 +78,8 @@ void run_decompose(const DecomposeArgs& args) {
   check_not_same_file(args.input, args.output);
   check_output_path(args.output);
   if (!is_polyline_extension(lower_extension(args.output)))
-    throw InputError(ErrorCode::unknown_format, args.output + ": cannot write fibres as '" + lower_extension(args.output) +
+    throw InputError(ErrorCode::unknown_format, args.output + ": cannot write fibres as '" +
+                                                    lower_extension(args.output) +
                                                     "' (use .vtk, .vtp, .vtu, .obj or .csv)");
   if (!args.report.empty()) {
     check_not_same_file(args.input, args.report);
@@ -99,8 +98,8 @@ void run_decompose(const DecomposeArgs& args) {
     check_output_path(args.architecture);
     const std::string ext = lower_extension(args.architecture);
     if (ext != "json" && ext != "csv")
-      throw InputError(ErrorCode::unknown_format, args.architecture + ": cannot write the architecture as '" + ext +
-                                                      "' (use .json or .csv)");
+      throw InputError(ErrorCode::unknown_format,
+                       args.architecture + ": cannot write the architecture as '" + ext + "' (use .json or .csv)");
   }
   if (!args.repaired_output.empty()) {
     check_not_same_file(args.input, args.repaired_output);
@@ -156,26 +155,31 @@ void run_decompose(const DecomposeArgs& args) {
     if (write_fibres && !args.fe_mesh.empty()) {
       // The muscle's volume as tetrahedra, each with the direction of its nearest fibre.
       TetrahedralizeReport made;
-      const TetMesh tets = tetrahedralize(result.muscle, sized_tetrahedra(signed_volume(result.muscle), args.fe_cells), &made);
+      const TetMesh tets =
+          tetrahedralize(result.muscle, sized_tetrahedra(signed_volume(result.muscle), args.fe_cells), &made);
       const std::vector<Vec3> directions = cell_fibre_directions(tets, result.fibres);
       report["fe_mesh"] = made.to_json();
-      outputs.stage(args.fe_mesh, [&](const std::string& path) { write_tetrahedra(path, tets, "fibre_direction", directions); });
+      outputs.stage(args.fe_mesh,
+                    [&](const std::string& path) { write_tetrahedra(path, tets, "fibre_direction", directions); });
     }
     if (write_fibres && !args.architecture.empty())
       outputs.stage(args.architecture, [&](const std::string& path) { write_architecture(path, r.architecture); });
-    if (!args.report.empty()) outputs.stage(args.report, [&](const std::string& path) { write_json_report(path, report); });
+    if (!args.report.empty())
+      outputs.stage(args.report, [&](const std::string& path) { write_json_report(path, report); });
     outputs.commit();
-    const std::string kept = r.attempts.size() > 1 ? "; try " + std::to_string(r.kept_attempt + 1) + " of " +
-                                                         std::to_string(r.attempts.size()) + " kept (" +
-                                                         r.attempts[static_cast<std::size_t>(r.kept_attempt)].value("change", "none") + ")"
-                                                   : "";
+    const std::string kept =
+        r.attempts.size() > 1
+            ? "; try " + std::to_string(r.kept_attempt + 1) + " of " + std::to_string(r.attempts.size()) + " kept (" +
+                  r.attempts[static_cast<std::size_t>(r.kept_attempt)].value("change", "none") + ")"
+            : "";
     if (!q.pass) {
       std::string failed;
       for (const std::string& f : q.failed) failed += (failed.empty() ? "" : ", ") + f;
       spdlog::info("{}{}", q.summary(), kept);
-      throw Error(ErrorCode::quality, "decompose: the fibres fail the check (" + failed + ")" +
-                                          std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
-                                          (args.report.empty() ? "" : ", details in " + args.report));
+      throw Error(ErrorCode::quality,
+                  "decompose: the fibres fail the check (" + failed + ")" +
+                      std::string(args.keep_failed ? "; fibres written (--keep-failed)" : "; no output written") +
+                      (args.report.empty() ? "" : ", details in " + args.report));
     }
     spdlog::info("wrote {}: {} fibres x {} points in {:.3f} s; {}{}", args.output, result.fibres.lines.size(),
                  options.resolution, r.seconds, q.summary(), kept);
@@ -190,11 +194,13 @@ void run_decompose(const DecomposeArgs& args) {
 void add_decompose_command(CLI::App& app) {
   auto args = std::make_shared<DecomposeArgs>();
   DecomposeOptions& o = args->options;
-  CLI::App* cmd = app.add_subcommand("decompose", "Muscle surface in, muscle fibres out (repaired, mapped, settled, checked)");
+  CLI::App* cmd =
+      app.add_subcommand("decompose", "Muscle surface in, muscle fibres out (repaired, mapped, settled, checked)");
   cmd->add_option("input", args->input, "Muscle surface (off, obj, stl, ply, vtk, txt); repaired first")->required();
   cmd->add_option("-o,--output", args->output, "Fibres: .vtk, .vtp, .vtu, .obj (polylines) or .csv")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (every stage, quality)");
-  cmd->add_option("--write-repaired", args->repaired_output, "Also write the repaired muscle (off, obj, stl, ply, vtk)");
+  cmd->add_option("--write-repaired", args->repaired_output,
+                  "Also write the repaired muscle (off, obj, stl, ply, vtk)");
   cmd->add_option("--architecture", args->architecture,
                   "Also write the fibres' architecture (lengths, pennation, PCSA, force) (.json or .csv)");
   add_architecture_options(cmd, o.architecture);
@@ -211,13 +217,15 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--model", args->model, "Springs: 6 (face neighbours) or 26 (all neighbours)")->capture_default_str();
   cmd->add_option("--solver", args->solver, "Settle: static (equilibrium) or verlet (the thesis's dynamics)")
       ->capture_default_str();
-  cmd->add_option("--tolerance", o.settle.tolerance, "Stop the settle at this relative residual")->capture_default_str();
+  cmd->add_option("--tolerance", o.settle.tolerance, "Stop the settle at this relative residual")
+      ->capture_default_str();
   cmd->add_option("--max-iterations", o.settle.max_iterations, "Iteration cap of the settle")->capture_default_str();
   cmd->add_option("--portable-loop", o.settle.portable_loop,
                   "Settle with the portable spring loop, the same settle on every processor (true), or the fastest "
                   "loop the processor has (false)")
       ->capture_default_str();
-  cmd->add_option("--backend", args->backend, "Settle on cpu, gl (OpenGL compute shaders, float32, finished on the CPU in double "
+  cmd->add_option("--backend", args->backend,
+                  "Settle on cpu, gl (OpenGL compute shaders, float32, finished on the CPU in double "
                   "where it stops short of the tolerance) or auto (the CPU)")
       ->capture_default_str();
   cmd->add_option("--contain-segments", o.contain_segments,
@@ -269,8 +277,9 @@ void add_decompose_command(CLI::App& app) {
                   "Landmark areas: the face centre is the region point farthest from the other area among those at "
                   "least this share of the deepest point's distance from the region's border (1: the deepest)")
       ->capture_default_str();
-  cmd->add_option("--corner-twist", o.placement.corner_twist_deg,
-                  "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
+  cmd->add_option(
+         "--corner-twist", o.placement.corner_twist_deg,
+         "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
       ->capture_default_str();
   cmd->add_option("--even-perimeter", o.placement.even_perimeter,
                   "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
@@ -315,10 +324,11 @@ void add_decompose_command(CLI::App& app) {
                   "When the fibres fail the check, decompose once more with the alternative placement (even "
                   "perimeter and shallow contact switched) and keep the better result")
       ->capture_default_str();
-  cmd->add_option("--retry-max-inverted", o.retry_max_inverted_cells,
-                  "Skip the retries with the alternative placement and with the rims left when the first result has more "
-                  "inverted cells than this (they are also skipped when its folds outlasted the untangling with the "
-                  "surface ring free)")
+  cmd->add_option(
+         "--retry-max-inverted", o.retry_max_inverted_cells,
+         "Skip the retries with the alternative placement and with the rims left when the first result has more "
+         "inverted cells than this (they are also skipped when its folds outlasted the untangling with the "
+         "surface ring free)")
       ->capture_default_str();
   cmd->add_option("--contact-depth-min", o.contact_depth_min,
                   "Depth (local spacings) of the containment target of a point only just outside the muscle")
@@ -383,13 +393,15 @@ void add_decompose_command(CLI::App& app) {
       ->check(CLI::IsMember({"draft", "standard", "fine"}))
       ->capture_default_str();
   args->command = cmd;
-  group_options(cmd,
-                {{"Inputs and outputs", {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh",
-                                         "--keep-failed", "--check-options"}},
-                 {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
-                 {"Template and fibres", {"--template", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
-                 {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
-                "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
+  group_options(
+      cmd,
+      {{"Inputs and outputs",
+        {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh", "--keep-failed",
+         "--check-options"}},
+       {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
+       {"Template and fibres", {"--template", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
+       {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
+      "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
   cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");
   cmd->callback([args] { run_decompose(*args); });
 }

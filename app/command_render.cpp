@@ -54,8 +54,7 @@ void run_render(const RenderArgs& args) {
   const bool is_template = !args.template_name.empty();
   if (is_template && !args.mesh.empty())
     throw OptionError("--template draws a template; it takes no MESH (got " + args.mesh + ")");
-  if (!is_template && args.mesh.empty())
-    throw Error(ErrorCode::usage, "render: give a MESH file or --template NAME");
+  if (!is_template && args.mesh.empty()) throw Error(ErrorCode::usage, "render: give a MESH file or --template NAME");
   if (lower_extension(args.output) != "png")
     throw InputError(ErrorCode::unknown_format, args.output + ": the picture must be a .png file");
 #ifdef FASCICLE_HAVE_SHADERS
@@ -69,9 +68,12 @@ void run_render(const RenderArgs& args) {
     options.azimuth_deg = -62.0;
   }
   if (!args.size.empty()) std::tie(options.width, options.height) = parse_size(args.size);
-  if (args.background == "white") options.background = shaders::Rgba{1, 1, 1, 1};
-  else if (args.background == "black") options.background = shaders::Rgba{0, 0, 0, 1};
-  else throw OptionError("--background: must be white or black, got '" + args.background + "'");
+  if (args.background == "white")
+    options.background = shaders::Rgba{1, 1, 1, 1};
+  else if (args.background == "black")
+    options.background = shaders::Rgba{0, 0, 0, 1};
+  else
+    throw OptionError("--background: must be white or black, got '" + args.background + "'");
   if (args.elevation) options.elevation_deg = *args.elevation;
   if (args.azimuth) options.azimuth_deg = *args.azimuth;
   options.line_scale = static_cast<float>(args.line_scale ? *args.line_scale : (is_template ? 1.5 : 1.0));
@@ -115,10 +117,11 @@ void run_render(const RenderArgs& args) {
 
 void add_render_command(CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "render", "Draw a muscle (translucent) with its fibres coloured from origin to insertion, from N views "
-                "around its long axis, into one PNG (headless OpenGL; software rendering works); or a fibre "
-                "template with --template");
+  CLI::App* cmd =
+      app.add_subcommand("render",
+                         "Draw a muscle (translucent) with its fibres coloured from origin to insertion, from N views "
+                         "around its long axis, into one PNG (headless OpenGL; software rendering works); or a fibre "
+                         "template with --template");
   cmd->add_option("mesh", args->mesh, "Muscle surface (any mesh format read; need not be repaired)");
   cmd->add_option("fibres", args->fibres, "Fibres as polylines (.vtk, .obj), each from origin to insertion");
   cmd->add_option("-o,--output", args->output, "Output picture (.png)")->required();
@@ -127,8 +130,9 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--background", args->background, "white or black")->capture_default_str();
   cmd->add_option("--template", args->template_name,
                   "Draw this fibre template instead of a muscle: parallel, pennate, curved, fanned, rectus");
-  cmd->add_option("--elevation", args->elevation, "Tilt of the views towards the axis, degrees (default 0; 22 "
-                                                  "for --template)");
+  cmd->add_option("--elevation", args->elevation,
+                  "Tilt of the views towards the axis, degrees (default 0; 22 "
+                  "for --template)");
   cmd->add_option("--azimuth", args->azimuth, "Turn of the first view around the axis, degrees (default 0)");
   cmd->add_option("--line-scale", args->line_scale, "Multiplies the line widths (default 1; 1.5 for --template)");
   cmd->add_option("--gl-device", args->gl_device, "EGL device index (-1: first hardware device, else software)")

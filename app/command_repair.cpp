@@ -39,8 +39,8 @@ void run_repair(const RepairArgs& args) {
     report["input_file"] = args.input;
     report["output_file"] = args.output;
     if (!args.report.empty()) write_json_report(args.report, report);
-    spdlog::info("wrote {}: {} vertices, {} faces, {}{} ({:.2f} s)", args.output,
-                 result.mesh.positions.size(), result.mesh.triangles.size(), result.report.status,
+    spdlog::info("wrote {}: {} vertices, {} faces, {}{} ({:.2f} s)", args.output, result.mesh.positions.size(),
+                 result.mesh.triangles.size(), result.report.status,
                  result.report.fallback_used ? " by alpha wrap" : "", result.report.seconds);
   } catch (const Error& e) {
     nlohmann::json report = {{"input_file", args.input}};
@@ -68,8 +68,7 @@ void add_repair_command(CLI::App& app) {
                   "Largest component's minimum area share for keep-largest; below it, wrap")
       ->capture_default_str();
   cmd->add_flag("--no-wrap", args->no_wrap, "Refuse instead of falling back to alpha wrapping");
-  cmd->add_option("--wrap-alpha", args->options.wrap_alpha,
-                  "Finest alpha-wrap alpha as a fraction of the diagonal")
+  cmd->add_option("--wrap-alpha", args->options.wrap_alpha, "Finest alpha-wrap alpha as a fraction of the diagonal")
       ->capture_default_str();
   cmd->add_option("--wrap-seconds", args->options.wrap_seconds, "Time budget of the alpha-wrap fallback")
       ->capture_default_str();

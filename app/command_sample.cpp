@@ -72,8 +72,8 @@ void run_sample(const SampleArgs& args) {
       soup = inject_random_combination(soup, derive_seed(args.options.seed, 99), args.random_defects, &log);
   }
   write_triangle_mesh(args.output, soup_triangles(soup));
-  spdlog::info("wrote {}: {} {}, {} points, {} triangles, {} defect kind(s)", args.output,
-               args.kind, default_defects || !log.records.empty() ? "with defects" : "clean", soup.points.size(),
+  spdlog::info("wrote {}: {} {}, {} points, {} triangles, {} defect kind(s)", args.output, args.kind,
+               default_defects || !log.records.empty() ? "with defects" : "clean", soup.points.size(),
                soup.polygons.size(), log.records.size());
   for (const DefectRecord& r : log.records) spdlog::debug("{} x{}: {}", defect_name(r.kind), r.count, r.note);
 
@@ -81,10 +81,10 @@ void run_sample(const SampleArgs& args) {
     nlohmann::json defects = nlohmann::json::array();
     for (const DefectRecord& r : log.records)
       defects.push_back({{"kind", defect_name(r.kind)}, {"count", r.count}, {"note", r.note}});
-    nlohmann::json report = {{"shape", args.kind},          {"seed", args.options.seed},
-                             {"clean", log.records.empty()}, {"output_file", args.output},
-                             {"points", soup.points.size()}, {"faces", soup.polygons.size()},
-                             {"defects", defects}};
+    nlohmann::json report = {
+        {"shape", args.kind},         {"seed", args.options.seed},    {"clean", log.records.empty()},
+        {"output_file", args.output}, {"points", soup.points.size()}, {"faces", soup.polygons.size()},
+        {"defects", defects}};
     write_json_report(args.log, report);
   }
 }
@@ -99,8 +99,9 @@ void add_sample_command(CLI::App& app) {
   cmd->add_option("--seed", args->options.seed, "Seed of every random defect choice")->capture_default_str();
   cmd->add_flag("--clean", args->clean, "Write the clean surface, without defects");
   cmd->add_option("--log", args->log, "Write a JSON log of the injected defects");
-  cmd->add_option("--kind", args->kind, "Shape: the sample muscle or a test shape (test shapes are clean "
-                                        "unless --inject or --random-defects)")
+  cmd->add_option("--kind", args->kind,
+                  "Shape: the sample muscle or a test shape (test shapes are clean "
+                  "unless --inject or --random-defects)")
       ->check(CLI::IsMember({"muscle", "capsule", "icosphere", "cube", "tube", "torus", "tetrahedron"}))
       ->capture_default_str();
   std::vector<std::string> names;

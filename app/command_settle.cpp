@@ -123,8 +123,8 @@ void run_settle(const SettleArgs& args) {
   springs::SettleReport report;
 #ifdef FASCICLE_HAVE_SHADERS
   {
-    const bool large = options.solver == springs::SolverKind::verlet &&
-                       system.positions.size() >= shaders::kAutoGpuMinPoints;
+    const bool large =
+        options.solver == springs::SolverKind::verlet && system.positions.size() >= shaders::kAutoGpuMinPoints;
     const bool hardware = args.backend == "auto" && large && shaders::hardware_gl_device_available();
     const shaders::BackendChoice choice =
         shaders::choose_backend(args.backend, options.solver, system.positions.size(), hardware);
@@ -133,8 +133,9 @@ void run_settle(const SettleArgs& args) {
   }
 #else
   if (args.backend == "gl" || args.backend == "gl-gs")
-    throw Error(ErrorCode::gpu, "backend: " + args.backend + " is not in this build (OpenGL, EGL or GLEW was not "
-                                "found when it was built); use --backend cpu");
+    throw Error(ErrorCode::gpu, "backend: " + args.backend +
+                                    " is not in this build (OpenGL, EGL or GLEW was not "
+                                    "found when it was built); use --backend cpu");
   if (args.backend != "cpu" && args.backend != "auto")
     throw OptionError("backend: unknown backend '" + args.backend + "' (valid: cpu, gl, gl-gs, auto)");
   reason = args.backend == "cpu" ? "requested (--backend cpu)" : "auto: this build has no OpenGL backend";
@@ -169,23 +170,33 @@ void run_settle(const SettleArgs& args) {
     const shaders::GpuSettleReport gpu = shaders::settle_gpu(context, system, options, gpu_options, shape_ptr);
     report = gpu;
     if (gpu.polished)
-      spdlog::info("the residual stopped falling at {:.3g} on the GPU (float32 precision); the CPU polished in "
-                   "double: {} iterations to {:.3g}, {:.3f} s", gpu.gpu_residual, gpu.polish_iterations,
-                   gpu.residual, gpu.polish_seconds);
+      spdlog::info(
+          "the residual stopped falling at {:.3g} on the GPU (float32 precision); the CPU polished in "
+          "double: {} iterations to {:.3g}, {:.3f} s",
+          gpu.gpu_residual, gpu.polish_iterations, gpu.residual, gpu.polish_seconds);
     else if (gpu.stalled)
-      spdlog::warn("the residual stopped falling at {:.3g} on the GPU (float32 precision); use --gpu-polish "
-                   "true (with iterations left of --max-iterations) or --backend cpu for a tolerance below it", gpu.residual);
-    gpu_info = {{"renderer", gpu.renderer}, {"gl_version", gpu.gl_version}, {"hardware", gpu.hardware},
-                {"platform", context.platform()}, {"readback_seconds", gpu.readback_seconds},
-                {"gpu_bytes", gpu.gpu_bytes}, {"check_interval", args.check_interval}, {"stalled", gpu.stalled},
-                {"gpu_residual", gpu.gpu_residual}, {"polish", args.gpu_polish}, {"polished", gpu.polished},
-                {"polish_iterations", gpu.polish_iterations}, {"polish_seconds", gpu.polish_seconds}};
+      spdlog::warn(
+          "the residual stopped falling at {:.3g} on the GPU (float32 precision); use --gpu-polish "
+          "true (with iterations left of --max-iterations) or --backend cpu for a tolerance below it",
+          gpu.residual);
+    gpu_info = {{"renderer", gpu.renderer},
+                {"gl_version", gpu.gl_version},
+                {"hardware", gpu.hardware},
+                {"platform", context.platform()},
+                {"readback_seconds", gpu.readback_seconds},
+                {"gpu_bytes", gpu.gpu_bytes},
+                {"check_interval", args.check_interval},
+                {"stalled", gpu.stalled},
+                {"gpu_residual", gpu.gpu_residual},
+                {"polish", args.gpu_polish},
+                {"polished", gpu.polished},
+                {"polish_iterations", gpu.polish_iterations},
+                {"polish_seconds", gpu.polish_seconds}};
 #endif
   }
   spdlog::info("settled {} points ({} fixed, {} springs) with {} [{}]: {} iterations, residual {:.3g}{}, {:.3f} s",
-               system.positions.size(),
-               std::count(system.fixed.begin(), system.fixed.end(), 1), system.springs.size(), report.solver,
-               report.backend, report.iterations, report.residual,
+               system.positions.size(), std::count(system.fixed.begin(), system.fixed.end(), 1), system.springs.size(),
+               report.solver, report.backend, report.iterations, report.residual,
                report.converged ? "" : (options.tolerance > 0.0 ? " (NOT converged)" : ""), report.seconds);
 
   if (extension == "txt")
@@ -201,7 +212,9 @@ void run_settle(const SettleArgs& args) {
     j["points"] = system.positions.size();
     j["fixed_points"] = std::count(system.fixed.begin(), system.fixed.end(), 1);
     j["springs"] = system.springs.size();
-    j["lattice"] = shape ? nlohmann::json{{"nx", shape->nx}, {"ny", shape->ny}, {"nz", shape->nz},
+    j["lattice"] = shape ? nlohmann::json{{"nx", shape->nx},
+                                          {"ny", shape->ny},
+                                          {"nz", shape->nz},
                                           {"model", static_cast<int>(shape->model)}}
                          : nlohmann::json(nullptr);
     j["solver"] = report.solver;
@@ -235,8 +248,8 @@ void run_settle(const SettleArgs& args) {
 
 void add_settle_command(CLI::App& app) {
   auto args = std::make_shared<SettleArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "settle", "Settle a mass-spring system in the thesis format (fixed surface, free interior)");
+  CLI::App* cmd =
+      app.add_subcommand("settle", "Settle a mass-spring system in the thesis format (fixed surface, free interior)");
   cmd->add_option("input", args->input, "Input model, thesis text format (.txt)")->required();
   cmd->add_option("-o,--output", args->output, "Output: .txt (thesis format) or .vtk (fibre polylines)")->required();
   cmd->add_option("--report", args->report, "Write a JSON report here");
@@ -266,8 +279,9 @@ void add_settle_command(CLI::App& app) {
                   "Structured path: the portable spring loop, the same result on every processor (true), or the "
                   "fastest loop the processor has: AVX-512, AVX2 (false)")
       ->capture_default_str();
-  cmd->add_option("--gl-device", args->gl_device, "EGL device index for gl/gl-gs (-1: first hardware device, "
-                                                  "else the software renderer)")
+  cmd->add_option("--gl-device", args->gl_device,
+                  "EGL device index for gl/gl-gs (-1: first hardware device, "
+                  "else the software renderer)")
       ->capture_default_str();
   cmd->add_option("--gpu-check-interval", args->check_interval,
                   "gl/gl-gs: iterations between residual checks on the GPU")
@@ -284,8 +298,9 @@ void add_settle_command(CLI::App& app) {
   cmd->add_option("--max-iterations", args->max_iterations, "Iteration cap")->capture_default_str();
   cmd->add_option("--mass", args->mass, "Point mass (default: --density x bounding-box volume / points)");
   cmd->add_option("--density", args->density, "Mass per unit volume when --mass is not given")->capture_default_str();
-  cmd->add_option("--damping", args->damping, "Verlet damping c: a number, 'critical' (sqrt(4 k m) per point) or "
-                                              "'estimate' (thesis formula 7.2)")
+  cmd->add_option("--damping", args->damping,
+                  "Verlet damping c: a number, 'critical' (sqrt(4 k m) per point) or "
+                  "'estimate' (thesis formula 7.2)")
       ->capture_default_str();
   cmd->add_option("--dt", args->dt, "Verlet time step (0: the largest stable step x 0.9)")->capture_default_str();
   cmd->callback([args] { run_settle(*args); });

@@ -59,7 +59,8 @@ Vec3 mean_direction(const std::vector<Vec3>& sphere, const std::vector<int>& ver
 /// to the muscle's attachment centres on its sphere map: the template's origin / insertion
 /// centres are the mean sphere directions of its t = 0 / t = 1 surface points. Returns the
 /// "alignment" object of the report.
-nlohmann::json align_template(const Vec3& target_origin, const Vec3& target_insertion, const SphereMapOptions& options) {
+nlohmann::json align_template(const Vec3& target_origin, const Vec3& target_insertion,
+                              const SphereMapOptions& options) {
   const springs::Lattice lattice = springs::build_lattice(springs::LatticeOptions{});
   // The surface uses only the boundary points of the lattice: renumber them compactly.
   std::vector<int> compact(lattice.system.positions.size(), -1);
@@ -142,8 +143,8 @@ void run_sphere(const SphereArgs& args) {
     if (map.report.status != "ok") {
       report["status"] = map.report.status;
       if (!args.report.empty()) write_json_report(args.report, report);
-      throw SolverError("sphere map (" + map.report.method + ") failed: " + map.report.failure +
-                        "; no output written" + (args.report.empty() ? "" : ", details in " + args.report));
+      throw SolverError("sphere map (" + map.report.method + ") failed: " + map.report.failure + "; no output written" +
+                        (args.report.empty() ? "" : ", details in " + args.report));
     }
 #if FASCICLE_HAVE_SPRINGS
     const Vec3 target_o = sphere_centre(areas.origin, map.positions, mesh.triangles);
@@ -158,10 +159,11 @@ void run_sphere(const SphereArgs& args) {
     write_triangle_mesh(args.output, TriangleMesh{map.positions, mesh.triangles});
     if (!args.report.empty()) write_json_report(args.report, report);
     const SphereQuality& q = map.report.quality;
-    spdlog::info("wrote {}: {} vertices on the sphere ({} start), {} flipped, {} degenerate, area ratio {:.3g}..{:.3g}, "
-                 "mean |log| {:.3f} ({:.3f} s)",
-                 args.output, map.positions.size(), map.report.initial_map.empty() ? map.report.method : map.report.initial_map,
-                 q.flipped, q.degenerate, q.area_ratio_min, q.area_ratio_max, q.area_log_mean, map.report.seconds);
+    spdlog::info(
+        "wrote {}: {} vertices on the sphere ({} start), {} flipped, {} degenerate, area ratio {:.3g}..{:.3g}, "
+        "mean |log| {:.3f} ({:.3f} s)",
+        args.output, map.positions.size(), map.report.initial_map.empty() ? map.report.method : map.report.initial_map,
+        q.flipped, q.degenerate, q.area_ratio_min, q.area_ratio_max, q.area_log_mean, map.report.seconds);
   } catch (const Error& e) {
     write_failure_report(args.report, report, e);
     throw;
@@ -176,7 +178,8 @@ void add_sphere_command(CLI::App& app) {
   cmd->add_option("input", args->input, "Input mesh (off, obj, stl, ply, vtk, txt)")->required();
   cmd->add_option("-o,--output", args->output, "Sphere mesh, same connectivity (off, obj, stl, ply, vtk)")->required();
   cmd->add_option("--report", args->report, "Write a JSON report (repair, map quality, attachment centres)");
-  cmd->add_option("--sphere-method", args->method, "tutte: Tutte embedding, checked bijective (default); relax: the thesis's method")
+  cmd->add_option("--sphere-method", args->method,
+                  "tutte: Tutte embedding, checked bijective (default); relax: the thesis's method")
       ->capture_default_str();
   cmd->add_option("--sphere-start", args->start,
                   "tutte: automatic (long shapes: tube start, progressive-mesh start when it is not bijective; "

@@ -12,7 +12,7 @@
 namespace fascicle {
 struct AttachmentOptions;
 struct ArchitectureOptions;
-}
+}  // namespace fascicle
 
 namespace fascicle::app {
 
@@ -35,15 +35,15 @@ void add_automatic_area_options(CLI::App* cmd, AttachmentOptions& options);
 /// for decompose and check; they write `options` when parsed.
 void add_architecture_options(CLI::App* cmd, ArchitectureOptions& options);
 
-void add_sample_command(CLI::App& app);   // fascicle sample
-void add_repair_command(CLI::App& app);   // fascicle repair
-void add_convert_command(CLI::App& app);  // fascicle convert
-void add_bench_command(CLI::App& app);    // fascicle bench ...
-void add_settle_command(CLI::App& app);   // fascicle settle
-void add_sphere_command(CLI::App& app);   // fascicle sphere
-void add_check_command(CLI::App& app);    // fascicle check
+void add_sample_command(CLI::App& app);     // fascicle sample
+void add_repair_command(CLI::App& app);     // fascicle repair
+void add_convert_command(CLI::App& app);    // fascicle convert
+void add_bench_command(CLI::App& app);      // fascicle bench ...
+void add_settle_command(CLI::App& app);     // fascicle settle
+void add_sphere_command(CLI::App& app);     // fascicle sphere
+void add_check_command(CLI::App& app);      // fascicle check
 void add_decompose_command(CLI::App& app);  // fascicle decompose
-void add_batch_command(CLI::App& app);    // fascicle batch
-void add_render_command(CLI::App& app);   // fascicle render
+void add_batch_command(CLI::App& app);      // fascicle batch
+void add_render_command(CLI::App& app);     // fascicle render
 
 }  // namespace fascicle::app

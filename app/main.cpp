@@ -63,8 +63,8 @@ std::string suggestions(const CLI::App& app, const std::string& message) {
   std::size_t at = 0;
   while ((at = message.find("--", at)) != std::string::npos) {
     std::size_t end = at;
-    while (end < message.size() && (std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '-' ||
-                                    message[end] == '_'))
+    while (end < message.size() &&
+           (std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '-' || message[end] == '_'))
       ++end;
     const std::string given = message.substr(at, end - at);
     at = end;
@@ -85,10 +85,14 @@ std::string suggestions(const CLI::App& app, const std::string& message) {
 std::string with_option_names(const CLI::App& app, const std::string& message) {
   const std::vector<std::string> names = option_names(active_command(app));
   static const std::vector<std::pair<std::string, std::string>> renamed = {
-      {"--landmark-twists-deg", "--landmark-twists"},   {"--max-turning-angle-deg", "--max-turning-angle"},
-      {"--smooth-steps", "--smooth"},                   {"--retry-alternative", "--retry"},
-      {"--retry-max-inverted-cells", "--retry-max-inverted"}, {"--coverage-samples", "--samples"},
-      {"--untangle-cells", "--untangle"},               {"--corner-twist-deg", "--corner-twist"}};
+      {"--landmark-twists-deg", "--landmark-twists"},
+      {"--max-turning-angle-deg", "--max-turning-angle"},
+      {"--smooth-steps", "--smooth"},
+      {"--retry-alternative", "--retry"},
+      {"--retry-max-inverted-cells", "--retry-max-inverted"},
+      {"--coverage-samples", "--samples"},
+      {"--untangle-cells", "--untangle"},
+      {"--corner-twist-deg", "--corner-twist"}};
   const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
   std::string out;
   std::size_t at = 0;

@@ -38,8 +38,8 @@ struct DecomposeBenchArgs {
   std::string json;
   int repeat = 5;
   bool skip_speed = false, skip_templates = false, skip_corpus = false;
-  std::string scale;          // "FIBRESxPOINTS,..." for the scale run; empty: no scale run
-  bool scale_direct = false;  // the scale run also with the harmonic start's direct solve forced
+  std::string scale;                                // "FIBRESxPOINTS,..." for the scale run; empty: no scale run
+  bool scale_direct = false;                        // the scale run also with the harmonic start's direct solve forced
   double edge_cell = DecomposeOptions{}.edge_cell;  // DecomposeOptions::edge_cell of every run
   // The decomposition options of every run: the defaults but for the edge cells.
   DecomposeOptions options() const {
@@ -105,8 +105,10 @@ void print_quality(const std::string& name, const std::string& status, const Che
 }
 
 void run_decompose_bench(const DecomposeBenchArgs& args) {
-  nlohmann::json out = {{"speed", nlohmann::json::array()}, {"templates", nlohmann::json::array()},
-                        {"corpus", nlohmann::json::array()}, {"scale", nlohmann::json::array()}};
+  nlohmann::json out = {{"speed", nlohmann::json::array()},
+                        {"templates", nlohmann::json::array()},
+                        {"corpus", nlohmann::json::array()},
+                        {"scale", nlohmann::json::array()}};
   const fs::path data(args.data);
   const std::vector<std::array<int, 2>> scale = parse_scale(args.scale);
   // The speed and scale runs decompose the same muscle: repaired once, when the first needs it.
@@ -139,10 +141,11 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
     std::printf("decompose %s: %zu vertices, %zu triangles, 100 fibres x 15 points, edge cells %g, median of %d\n",
                 fs::path(args.muscle).filename().string().c_str(), muscle.positions.size(), muscle.triangles.size(),
                 args.edge_cell, args.repeat);
-    std::printf("  sphere %.3f s, placement %.3f s, settle %.3f s, output %.3f s, check %.3f s; total %.3f s "
-                "(cpu %.3f s), without the check %.3f s\n",
-                median(sphere), median(placement), median(settle), median(write), median(check), median(wall),
-                median(cpu), without_check);
+    std::printf(
+        "  sphere %.3f s, placement %.3f s, settle %.3f s, output %.3f s, check %.3f s; total %.3f s "
+        "(cpu %.3f s), without the check %.3f s\n",
+        median(sphere), median(placement), median(settle), median(write), median(check), median(wall), median(cpu),
+        without_check);
     out["speed"].push_back({{"muscle", args.muscle},
                             {"vertices", muscle.positions.size()},
                             {"triangles", muscle.triangles.size()},
@@ -177,8 +180,8 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
         const Decomposition d = decompose_repaired(muscle, Landmarks{}, options);
         const double wall = since(t0);
         const nlohmann::json& h = d.report.settle["harmonic"];
-        const double harmonic_seconds = h["factor_seconds"].get<double>() + h["setup_seconds"].get<double>() +
-                                        h["seconds"].get<double>();
+        const double harmonic_seconds =
+            h["factor_seconds"].get<double>() + h["setup_seconds"].get<double>() + h["seconds"].get<double>();
         const long lattice = d.report.lattice["points"].get<long>();
         const long peak = peak_resident_kib();
         std::printf("%7d %6d %8ld %-13s %9.3f %8.3f %8.3f %8.3f %8.3f %6ld %7.3f %9.1f\n", fibres, points, lattice,
@@ -209,8 +212,8 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
                 "seconds");
   if (!args.skip_templates) {
     const fs::path lhdl = data / "muscles" / "lhdl";
-    for (const char* name : {"LHDL_R_M081_GluteusMaximus", "LHDL_R_M082_GluteusMedius", "LHDL_R_M090_Psoas",
-                             "LHDL_R_M091_Iliacus"}) {
+    for (const char* name :
+         {"LHDL_R_M081_GluteusMaximus", "LHDL_R_M082_GluteusMedius", "LHDL_R_M090_Psoas", "LHDL_R_M091_Iliacus"}) {
       fs::path mesh;
       for (const auto& e : fs::directory_iterator(lhdl))
         if (e.path().filename().string().rfind(std::string(name) + "_smooth", 0) == 0) mesh = e.path();
@@ -228,13 +231,18 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
         try {
           const Decomposition d = decompose(read_polygon_soup(mesh.string()), landmarks, options);
           print_quality(label, d.report.status, d.report.quality, since(t0));
-          out["templates"].push_back({{"muscle", name}, {"template", springs::template_name(kind)},
-                                      {"status", d.report.status}, {"seconds", since(t0)},
+          out["templates"].push_back({{"muscle", name},
+                                      {"template", springs::template_name(kind)},
+                                      {"status", d.report.status},
+                                      {"seconds", since(t0)},
                                       {"quality", quality_json(d.report.quality)}});
         } catch (const Error& e) {
           std::printf("%-52s %-8s %s\n", label.c_str(), "error", e.what());
-          out["templates"].push_back({{"muscle", name}, {"template", springs::template_name(kind)},
-                                      {"status", "error"}, {"error", e.what()}, {"seconds", since(t0)}});
+          out["templates"].push_back({{"muscle", name},
+                                      {"template", springs::template_name(kind)},
+                                      {"status", "error"},
+                                      {"error", e.what()},
+                                      {"seconds", since(t0)}});
         }
       }
     }
@@ -256,8 +264,11 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
         const Decomposition d = decompose(read_polygon_soup(mesh.string()), Landmarks{}, args.options());
         print_quality(label, d.report.status, d.report.quality, since(t0));
         ok += d.report.status == "ok";
-        out["corpus"].push_back({{"muscle", label}, {"status", d.report.status}, {"seconds", since(t0)},
-                                 {"repair_seconds", d.report.repair_seconds}, {"quality", quality_json(d.report.quality)}});
+        out["corpus"].push_back({{"muscle", label},
+                                 {"status", d.report.status},
+                                 {"seconds", since(t0)},
+                                 {"repair_seconds", d.report.repair_seconds},
+                                 {"quality", quality_json(d.report.quality)}});
       } catch (const Error& e) {
         std::printf("%-52s %-8s %s\n", label.c_str(), "error", e.what());
         out["corpus"].push_back({{"muscle", label}, {"status", "error"}, {"error", e.what()}, {"seconds", since(t0)}});
@@ -268,8 +279,7 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
     out["corpus_seconds"] = since(start);
     out["corpus_pass"] = ok;
   }
-  if (!args.json.empty())
-    write_file_atomically(args.json, [&](std::ostream& s) { s << out.dump(2) << '\n'; });
+  if (!args.json.empty()) write_file_atomically(args.json, [&](std::ostream& s) { s << out.dump(2) << '\n'; });
 }
 
 }  // namespace

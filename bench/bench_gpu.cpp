@@ -96,7 +96,8 @@ Lattice bench_lattice(int n, SpringModel model) {
   for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
     if (!lattice.system.fixed[i]) continue;
     Vec3& p = lattice.system.positions[i];
-    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(), p.z() + 0.15 * p.x() * p.x());
+    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(),
+             p.z() + 0.15 * p.x() * p.x());
   }
   return lattice;
 }
@@ -143,8 +144,11 @@ void run_gpu_bench(const GpuBenchArgs& args) {
               context.platform().c_str(), kind.c_str());
   nlohmann::json records = nlohmann::json::array();
   auto base_record = [&](const std::string& section) {
-    return nlohmann::json{{"section", section}, {"renderer", context.renderer()}, {"gl_version", context.version()},
-                          {"hardware", context.hardware()}, {"platform", context.platform()}};
+    return nlohmann::json{{"section", section},
+                          {"renderer", context.renderer()},
+                          {"gl_version", context.version()},
+                          {"hardware", context.hardware()},
+                          {"platform", context.platform()}};
   };
 
   double stream_gb_per_s = 0.0;
@@ -156,13 +160,16 @@ void run_gpu_bench(const GpuBenchArgs& args) {
     std::printf("== stream bandwidth (compute-shader copy of %d MiB, bytes read + written): %.1f GB/s\n",
                 args.stream_mb, bw.gb_per_second);
     nlohmann::json record = base_record("bandwidth");
-    record.update({{"bytes", bw.bytes}, {"gb_per_second", bw.gb_per_second}, {"dispatches", bw.dispatches},
+    record.update({{"bytes", bw.bytes},
+                   {"gb_per_second", bw.gb_per_second},
+                   {"dispatches", bw.dispatches},
                    {"seconds", bw.seconds}});
     records.push_back(record);
   }
 
-  std::printf("\n== ms per Verlet iteration (thesis tables 7.1, 7.2; 2011: CPU 274 ms, GPU geometry shader 33.7 ms at "
-              "100^3 model-6)\n");
+  std::printf(
+      "\n== ms per Verlet iteration (thesis tables 7.1, 7.2; 2011: CPU 274 ms, GPU geometry shader 33.7 ms at "
+      "100^3 model-6)\n");
   std::printf("%6s %6s %-22s %12s %10s %12s %12s %8s\n", "n", "model", "backend", "ms/iter", "timed", "GPU MB",
               "stream ms", "x stream");
   for (int m : models) {
@@ -190,8 +197,11 @@ void run_gpu_bench(const GpuBenchArgs& args) {
             std::unique_ptr<SpringSolver> solver = make_solver(lattice.system, timing_options(), &shape);
             solver->step();
             name = "cpu-" + solver->backend();
-            std::tie(ms, timed) = time_iterations([&](int k) { for (int i = 0; i < k; ++i) solver->step(); },
-                                                  args.min_seconds);
+            std::tie(ms, timed) = time_iterations(
+                [&](int k) {
+                  for (int i = 0; i < k; ++i) solver->step();
+                },
+                args.min_seconds);
           } else {
             GpuSettleOptions gpu;
             gpu.backend = parse_gpu_backend(backend);
@@ -201,18 +211,22 @@ void run_gpu_bench(const GpuBenchArgs& args) {
             solver->finish();
             name = solver->backend();
             bytes = solver->gpu_bytes();
-            std::tie(ms, timed) = time_iterations([&](int k) { solver->run(k); solver->finish(); }, args.min_seconds);
+            std::tie(ms, timed) = time_iterations(
+                [&](int k) {
+                  solver->run(k);
+                  solver->finish();
+                },
+                args.min_seconds);
             if (!std::isfinite(solver->residual())) name += " (diverged)";
           }
-          record.update({{"backend", name}, {"ms_per_iteration", ms}, {"iterations_timed", timed},
-                         {"gpu_bytes", bytes}});
+          record.update(
+              {{"backend", name}, {"ms_per_iteration", ms}, {"iterations_timed", timed}, {"gpu_bytes", bytes}});
           if (stream_gb_per_s > 0.0 && name == "gl-structured-uniform") {
             // The time to move the kernel's least data once at the probe's bandwidth.
-            const double stream_ms =
-                1e3 * gl_uniform_bytes_per_point * lattice.point_count() / (stream_gb_per_s * 1e9);
+            const double stream_ms = 1e3 * gl_uniform_bytes_per_point * lattice.point_count() / (stream_gb_per_s * 1e9);
             record.update({{"stream_ms", stream_ms}, {"stream_ratio", ms / stream_ms}});
-            std::printf("%6d %6d %-22s %12.3f %10d %12.1f %12.4f %8.2f\n", n, m, name.c_str(), ms, timed,
-                        bytes / 1e6, stream_ms, ms / stream_ms);
+            std::printf("%6d %6d %-22s %12.3f %10d %12.1f %12.4f %8.2f\n", n, m, name.c_str(), ms, timed, bytes / 1e6,
+                        stream_ms, ms / stream_ms);
           } else {
             std::printf("%6d %6d %-22s %12.3f %10d %12.1f\n", n, m, name.c_str(), ms, timed, bytes / 1e6);
           }
@@ -238,7 +252,8 @@ void run_gpu_bench(const GpuBenchArgs& args) {
       const LatticeShape shape = shape_of(lattice);
       GpuSettleOptions gs;
       gs.backend = GpuBackend::gl_gs;
-      std::unique_ptr<GpuSpringSolver> gs_solver = make_gpu_solver(context, lattice.system, timing_options(), gs, &shape);
+      std::unique_ptr<GpuSpringSolver> gs_solver =
+          make_gpu_solver(context, lattice.system, timing_options(), gs, &shape);
       std::unique_ptr<GpuSpringSolver> gl_solver =
           make_gpu_solver(context, lattice.system, timing_options(), GpuSettleOptions{}, &shape);
       const std::pair<const char*, std::function<double()>> methods[] = {
@@ -251,16 +266,16 @@ void run_gpu_bench(const GpuBenchArgs& args) {
         for (int rep = 0; rep < 3; ++rep) best = std::min(best, read());
         std::printf("%6d %-14s %12.3f\n", n, method, 1e3 * best);
         nlohmann::json record = base_record("readback");
-        record.update({{"n", n}, {"points", lattice.point_count()}, {"method", method}, {"ms", 1e3 * best},
+        record.update({{"n", n},
+                       {"points", lattice.point_count()},
+                       {"method", method},
+                       {"ms", 1e3 * best},
                        {"bytes", 16.0 * lattice.point_count()}});
         records.push_back(record);
       }
-    } catch (const Error& e) {
-      std::printf("%6d readback skipped: %s\n", n, e.what());
-    }
+    } catch (const Error& e) { std::printf("%6d readback skipped: %s\n", n, e.what()); }
   }
-  if (!args.json.empty())
-    write_file_atomically(args.json, [&](std::ostream& out) { out << records.dump(2) << '\n'; });
+  if (!args.json.empty()) write_file_atomically(args.json, [&](std::ostream& out) { out << records.dump(2) << '\n'; });
 }
 
 }  // namespace

@@ -70,8 +70,8 @@ void run_repair_bench(const RepairBenchArgs& args) {
     fs::remove(out);
     fs::remove(report);
     const std::string cmd = quote(exe) + " --quiet --time-limit " + std::to_string(args.time_limit) + " repair " +
-                            quote(file.string()) + " -o " + quote(out.string()) + " --report " + quote(report.string()) +
-                            " 2>" + quote((tmp / "stderr.txt").string());
+                            quote(file.string()) + " -o " + quote(out.string()) + " --report " +
+                            quote(report.string()) + " 2>" + quote((tmp / "stderr.txt").string());
     // CPU time of the child (and its wrap workers) from the children's resource usage: less
     // sensitive than wall time to other load on the machine.
     auto children_cpu = [] {

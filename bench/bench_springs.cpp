@@ -38,17 +38,17 @@ struct SpringsBenchArgs {
   std::string rest_sizes = "5,10,20";
   std::string trade_sizes = "20,50,100";
   std::string sections = "bandwidth,speed,rest,trade";
-  std::string trade_solvers;    // empty: all
+  std::string trade_solvers;  // empty: all
   std::string trade_models = "6,26";
   std::string json;
-  std::string plots;            // folder for the template pictures (section "templates")
-  double min_seconds = 0.5;     // per speed measurement
-  double trade_limit = 60.0;    // seconds per trade run
-  int general_max_size = 100;   // largest lattice the general path is timed on (memory)
-  double rest_tolerance = 1e-4; // "at rest" for tables 7.4-7.6
-  double rest_dt = 0.01;        // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
+  std::string plots;               // folder for the template pictures (section "templates")
+  double min_seconds = 0.5;        // per speed measurement
+  double trade_limit = 60.0;       // seconds per trade run
+  int general_max_size = 100;      // largest lattice the general path is timed on (memory)
+  double rest_tolerance = 1e-4;    // "at rest" for tables 7.4-7.6
+  double rest_dt = 0.01;           // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
   int local_global_max_size = 20;  // the sparse Cholesky factor grows too fast above this
-  bool plain_kernel = false;    // structured path without the AVX-512 spring loop
+  bool plain_kernel = false;       // structured path without the AVX-512 spring loop
   double coarse_start_tolerance = SettleOptions{}.coarse_start_tolerance;  // static momentum's coarse start
   double coarse_start_perturbation = SettleOptions{}.coarse_start_perturbation;
 };
@@ -62,9 +62,7 @@ std::vector<int> parse_list(const std::string& text, const std::string& option) 
       const int v = std::stoi(item);
       if (v < 2 || v > 400) throw std::out_of_range("size");
       values.push_back(v);
-    } catch (const std::exception&) {
-      throw OptionError(option + ": '" + item + "' is not a lattice size in 2..400");
-    }
+    } catch (const std::exception&) { throw OptionError(option + ": '" + item + "' is not a lattice size in 2..400"); }
   }
   return values;
 }
@@ -103,7 +101,8 @@ Lattice bench_lattice(int n, SpringModel model, double mass) {
   for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
     if (!lattice.system.fixed[i]) continue;
     Vec3& p = lattice.system.positions[i];
-    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(), p.z() + 0.15 * p.x() * p.x());
+    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(),
+             p.z() + 0.15 * p.x() * p.x());
   }
   return lattice;
 }
@@ -164,10 +163,13 @@ double springs_per_second_in_cache(SpringModel model, double min_seconds) {
     solvers.push_back(make_solver(lattices[t].system, options, &shape));
   }
   auto run = [&](int steps) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, threads, 1), [&](const tbb::blocked_range<int>& r) {
-      for (int t = r.begin(); t != r.end(); ++t)
-        for (int i = 0; i < steps; ++i) solvers[t]->step();
-    }, tbb::simple_partitioner());
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, threads, 1),
+        [&](const tbb::blocked_range<int>& r) {
+          for (int t = r.begin(); t != r.end(); ++t)
+            for (int i = 0; i < steps; ++i) solvers[t]->step();
+        },
+        tbb::simple_partitioner());
   };
   run(20);
   int steps = 100;
@@ -182,17 +184,20 @@ double springs_per_second_in_cache(SpringModel model, double min_seconds) {
 }
 
 void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& records) {
-  std::printf("\n== ms per Verlet iteration (thesis tables 7.1, 7.2: 2011 CPU 100^3 model-6 274 ms, model-26 907 ms)\n");
-  std::printf("   (structured spring loop: %s; cpu ms = processor time of all threads per iteration;\n"
-              "    load average before: %s)\n",
-              springs::detail::structured_simd_name(), load_average().c_str());
+  std::printf(
+      "\n== ms per Verlet iteration (thesis tables 7.1, 7.2: 2011 CPU 100^3 model-6 274 ms, model-26 907 ms)\n");
+  std::printf(
+      "   (structured spring loop: %s; cpu ms = processor time of all threads per iteration;\n"
+      "    load average before: %s)\n",
+      springs::detail::structured_simd_name(), load_average().c_str());
   double in_cache_rate[2] = {0.0, 0.0};  // model-6, model-26: springs per second, all threads
   if (springs::detail::structured_simd_active() || args.plain_kernel) {
     in_cache_rate[0] = springs_per_second_in_cache(SpringModel::model6, args.min_seconds);
     in_cache_rate[1] = springs_per_second_in_cache(SpringModel::model26, args.min_seconds);
-    std::printf("   compute limit (structured kernel, each of %d threads on its own 16^3 lattice in cache): "
-                "model-6 %.0f, model-26 %.0f million springs/s\n",
-                std::max(1, tbb::this_task_arena::max_concurrency()), in_cache_rate[0] / 1e6, in_cache_rate[1] / 1e6);
+    std::printf(
+        "   compute limit (structured kernel, each of %d threads on its own 16^3 lattice in cache): "
+        "model-6 %.0f, model-26 %.0f million springs/s\n",
+        std::max(1, tbb::this_task_arena::max_concurrency()), in_cache_rate[0] / 1e6, in_cache_rate[1] / 1e6);
   }
   std::printf("%6s %6s %-19s %10s %10s %10s %12s %8s %11s %8s\n", "n", "model", "backend", "ms/iter", "cpu ms",
               "MB/iter", "stream ms", "ratio", "compute ms", "ratio");
@@ -239,13 +244,22 @@ void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& recor
         if (compute_ms > 0.0) std::printf(" %11.3f %8.2f", compute_ms, ms / compute_ms);
         std::printf("\n");
         std::fflush(stdout);
-        records.push_back({{"section", "speed"}, {"n", n}, {"model", static_cast<int>(model)}, {"solver", "verlet"},
-                           {"backend", solver->backend()}, {"ms_per_iteration", ms}, {"cpu_ms_per_iteration", cpu_ms},
-                           {"spring_loop", springs::detail::structured_simd_name()},
-                           {"load_average", load_average()}, {"iterations_timed", iterations},
-                           {"streamed_bytes", bytes}, {"stream_ms", stream_ms}, {"ratio_to_stream", ms / stream_ms},
-                           {"compute_ms", compute_ms > 0.0 ? nlohmann::json(compute_ms) : nlohmann::json(nullptr)},
-                           {"ratio_to_compute", compute_ms > 0.0 ? nlohmann::json(ms / compute_ms) : nlohmann::json(nullptr)}});
+        records.push_back(
+            {{"section", "speed"},
+             {"n", n},
+             {"model", static_cast<int>(model)},
+             {"solver", "verlet"},
+             {"backend", solver->backend()},
+             {"ms_per_iteration", ms},
+             {"cpu_ms_per_iteration", cpu_ms},
+             {"spring_loop", springs::detail::structured_simd_name()},
+             {"load_average", load_average()},
+             {"iterations_timed", iterations},
+             {"streamed_bytes", bytes},
+             {"stream_ms", stream_ms},
+             {"ratio_to_stream", ms / stream_ms},
+             {"compute_ms", compute_ms > 0.0 ? nlohmann::json(compute_ms) : nlohmann::json(nullptr)},
+             {"ratio_to_compute", compute_ms > 0.0 ? nlohmann::json(ms / compute_ms) : nlohmann::json(nullptr)}});
       }
     }
   }
@@ -267,16 +281,15 @@ int iterations_to_rest(const Lattice& lattice, double mass, DampingMode mode, do
   try {
     const SettleReport report = settle(system, options, &shape);
     return report.converged ? report.iterations : -1;
-  } catch (const SolverError&) {
-    return -1;
-  }
+  } catch (const SolverError&) { return -1; }
 }
 
 void run_rest(const SpringsBenchArgs& args, nlohmann::json& records) {
   std::printf("\n== Verlet iterations to rest (relative residual <= %g, dt = %g) against mass and damping\n",
               args.rest_tolerance, args.rest_dt);
   std::printf("   (thesis tables 7.4-7.6; best c from a scan of 32 log-spaced values in [0.05, 100])\n");
-  std::printf("%4s %6s %7s %10s %9s %10s %9s %10s\n", "n", "model", "mass", "best c", "iters", "c (7.2)", "iters", "critical");
+  std::printf("%4s %6s %7s %10s %9s %10s %9s %10s\n", "n", "model", "mass", "best c", "iters", "c (7.2)", "iters",
+              "critical");
   const int cap = 20000;
   for (int n : parse_list(args.rest_sizes, "rest-sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
@@ -305,10 +318,18 @@ void run_rest(const SpringsBenchArgs& args, nlohmann::json& records) {
         std::printf("%4d %6d %7.3f %10.3f %9d %10.3f %9d %10d\n", n, static_cast<int>(model), mass, best_c, best,
                     estimate, at_estimate, at_critical);
         std::fflush(stdout);
-        records.push_back({{"section", "rest"}, {"n", n}, {"model", static_cast<int>(model)}, {"solver", "verlet"},
-                           {"backend", "structured"}, {"mass", mass}, {"dt", args.rest_dt},
-                           {"tolerance", args.rest_tolerance}, {"best_damping", best_c}, {"best_iterations", best},
-                           {"estimate_damping", estimate}, {"estimate_iterations", at_estimate},
+        records.push_back({{"section", "rest"},
+                           {"n", n},
+                           {"model", static_cast<int>(model)},
+                           {"solver", "verlet"},
+                           {"backend", "structured"},
+                           {"mass", mass},
+                           {"dt", args.rest_dt},
+                           {"tolerance", args.rest_tolerance},
+                           {"best_damping", best_c},
+                           {"best_iterations", best},
+                           {"estimate_damping", estimate},
+                           {"estimate_iterations", at_estimate},
                            {"critical_iterations", at_critical}});
       }
     }
@@ -321,8 +342,10 @@ struct TradeSolver {
 };
 
 void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
-  std::printf("\n== Speed/accuracy: wall seconds (setup included) to reach relative residual 1e-2, 1e-4, 1e-6 "
-              "(limit %g s a run)\n", args.trade_limit);
+  std::printf(
+      "\n== Speed/accuracy: wall seconds (setup included) to reach relative residual 1e-2, 1e-4, 1e-6 "
+      "(limit %g s a run)\n",
+      args.trade_limit);
   std::printf("%5s %6s %-22s %10s %10s %10s %10s %12s\n", "n", "model", "solver", "setup s", "1e-2", "1e-4", "1e-6",
               "iterations");
   std::vector<TradeSolver> solvers;
@@ -359,7 +382,8 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
   const double thresholds[3] = {1e-2, 1e-4, 1e-6};
   for (int n : parse_list(args.trade_sizes, "trade-sizes")) {
     for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
-      if (("," + args.trade_models + ",").find("," + std::to_string(static_cast<int>(model)) + ",") == std::string::npos)
+      if (("," + args.trade_models + ",").find("," + std::to_string(static_cast<int>(model)) + ",") ==
+          std::string::npos)
         continue;
       const Lattice lattice = bench_lattice(n, model, 1.1 / (static_cast<double>(n) * n * n));
       const LatticeShape shape = shape_of(lattice);
@@ -405,20 +429,20 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
               break;
             }
           }
-        } catch (const SolverError& e) {
-          status = std::string("diverged: ") + e.what();
-        }
+        } catch (const SolverError& e) { status = std::string("diverged: ") + e.what(); }
         const double wall = seconds_since(t0), cpu = process_cpu_seconds() - c0;
         auto cell = [](double v) {
           char buffer[32];
-          if (v < 0) std::snprintf(buffer, sizeof buffer, "%10s", "-");
-          else std::snprintf(buffer, sizeof buffer, "%10.3f", v);
+          if (v < 0)
+            std::snprintf(buffer, sizeof buffer, "%10s", "-");
+          else
+            std::snprintf(buffer, sizeof buffer, "%10.3f", v);
           return std::string(buffer);
         };
-        const std::string start =
-            solver->start_levels() > 0 ? ", coarse start " + std::to_string(solver->start_levels()) + " levels " +
-                                             std::to_string(solver->start_iterations()) + " iterations"
-                                       : "";
+        const std::string start = solver->start_levels() > 0
+                                      ? ", coarse start " + std::to_string(solver->start_levels()) + " levels " +
+                                            std::to_string(solver->start_iterations()) + " iterations"
+                                      : "";
         std::printf("%5d %6d %-22s %10.3f %s %s %s %12d  wall %.1f s, cpu %.1f s, load %s%s%s\n", n,
                     static_cast<int>(model), entry.name.c_str(), setup, cell(reached[0]).c_str(),
                     cell(reached[1]).c_str(), cell(reached[2]).c_str(), iterations, wall, cpu, load_before.c_str(),
@@ -426,15 +450,23 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
                     status == "ok" ? "" : ("  (" + status + ", residual " + std::to_string(residual) + ")").c_str());
         std::fflush(stdout);
         for (int k = 0; k < 3; ++k)
-          records.push_back({{"section", "trade"}, {"n", n}, {"model", static_cast<int>(model)},
-                             {"solver", entry.name}, {"backend", solver->backend()}, {"tolerance", thresholds[k]},
+          records.push_back({{"section", "trade"},
+                             {"n", n},
+                             {"model", static_cast<int>(model)},
+                             {"solver", entry.name},
+                             {"backend", solver->backend()},
+                             {"tolerance", thresholds[k]},
                              {"seconds", reached[k] >= 0 ? nlohmann::json(reached[k]) : nlohmann::json(nullptr)},
-                             {"setup_seconds", setup}, {"iterations", iterations},
-                             {"inner_iterations", solver->inner_iterations()}, {"status", status},
+                             {"setup_seconds", setup},
+                             {"iterations", iterations},
+                             {"inner_iterations", solver->inner_iterations()},
+                             {"status", status},
                              {"start_levels", solver->start_levels()},
                              {"start_iterations", solver->start_iterations()},
                              {"coarse_start_perturbation", options.coarse_start_perturbation},
-                             {"final_residual", residual}, {"wall_seconds", wall}, {"cpu_seconds", cpu},
+                             {"final_residual", residual},
+                             {"wall_seconds", wall},
+                             {"cpu_seconds", cpu},
                              {"load_average_before", load_before}});
       }
     }
@@ -459,14 +491,15 @@ void run_springs_bench(const SpringsBenchArgs& args) {
     triad = best_triad;
     std::printf("== memory bandwidth (STREAM-like, %zu threads): copy %.1f GB/s, triad %.1f GB/s\n",
                 static_cast<std::size_t>(tbb::this_task_arena::max_concurrency()), copy, triad);
-    records.push_back({{"section", "bandwidth"}, {"copy_gb_per_s", copy}, {"triad_gb_per_s", triad},
+    records.push_back({{"section", "bandwidth"},
+                       {"copy_gb_per_s", copy},
+                       {"triad_gb_per_s", triad},
                        {"threads", tbb::this_task_arena::max_concurrency()}});
   }
   if (has_section(args, "speed")) run_speed(args, triad, records);
   if (has_section(args, "rest")) run_rest(args, records);
   if (has_section(args, "trade")) run_trade(args, records);
-  if (!args.json.empty())
-    write_file_atomically(args.json, [&](std::ostream& out) { out << records.dump(2) << '\n'; });
+  if (!args.json.empty()) write_file_atomically(args.json, [&](std::ostream& out) { out << records.dump(2) << '\n'; });
 }
 
 }  // namespace
@@ -475,18 +508,22 @@ void add_springs_bench(CLI::App& bench) {
   auto args = std::make_shared<SpringsBenchArgs>();
   CLI::App* cmd = bench.add_subcommand("springs", "Spring solvers: ms/iteration, iterations to rest, speed/accuracy");
   cmd->add_option("--sizes", args->sizes, "Lattice sizes n (n^3 points) for ms/iteration")->capture_default_str();
-  cmd->add_option("--rest-sizes", args->rest_sizes, "Sizes for iterations to rest (tables 7.4-7.6)")->capture_default_str();
+  cmd->add_option("--rest-sizes", args->rest_sizes, "Sizes for iterations to rest (tables 7.4-7.6)")
+      ->capture_default_str();
   cmd->add_option("--trade-sizes", args->trade_sizes, "Sizes for the speed/accuracy trade")->capture_default_str();
   cmd->add_option("--sections", args->sections, "Any of bandwidth,speed,rest,trade,templates")->capture_default_str();
   cmd->add_option("--trade-limit", args->trade_limit, "Seconds per trade run")->capture_default_str();
   cmd->add_option("--trade-solvers", args->trade_solvers,
-                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-momentum-fine, static-newton, static-multigrid, "
+                  "Only these trade solvers (verlet-estimate, verlet-critical, static-momentum, static-momentum-fine, "
+                  "static-newton, static-multigrid, "
                   "static-local-global, static-local-global-plain); default all");
   cmd->add_option("--trade-models", args->trade_models, "Spring models for the trade (6, 26)")->capture_default_str();
   cmd->add_option("--min-seconds", args->min_seconds, "Seconds per ms/iteration measurement")->capture_default_str();
-  cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")->capture_default_str();
+  cmd->add_option("--general-max-size", args->general_max_size, "Largest n timed on the general path")
+      ->capture_default_str();
   cmd->add_option("--rest-dt", args->rest_dt, "Time step for the iterations-to-rest tables")->capture_default_str();
-  cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")->capture_default_str();
+  cmd->add_option("--rest-tolerance", args->rest_tolerance, "Relative residual that counts as rest")
+      ->capture_default_str();
   cmd->add_option("--coarse-start-tolerance", args->coarse_start_tolerance,
                   "Relative residual of the coarse lattices of static-momentum's coarse start")
       ->capture_default_str();
@@ -494,8 +531,9 @@ void add_springs_bench(CLI::App& bench) {
                   "Share of the mean rest length by which static-momentum's coarse start offsets its free points "
                   "(model-6 lattices only; 0: none)")
       ->capture_default_str();
-  cmd->add_flag("--plain-kernel", args->plain_kernel,
-               "Structured path: the plain C++ spring loop instead of the vector one, AVX-512 or AVX2 (for comparison)");
+  cmd->add_flag(
+      "--plain-kernel", args->plain_kernel,
+      "Structured path: the plain C++ spring loop instead of the vector one, AVX-512 or AVX2 (for comparison)");
   cmd->add_option("--json", args->json, "Write the records as JSON here");
   cmd->add_option("--plots", args->plots, "Folder for the template pictures (section templates)");
   cmd->callback([args] { run_springs_bench(*args); });

@@ -131,7 +131,8 @@ Architecture measure_architecture(const Polylines& fibres, const TriangleMesh& m
 void write_architecture(const std::string& path, const Architecture& architecture) {
   const std::string ext = lower_extension(path);
   if (ext != "json" && ext != "csv")
-    throw InputError(ErrorCode::unknown_format, path + ": cannot write the architecture as '" + ext + "' (use .json or .csv)");
+    throw InputError(ErrorCode::unknown_format,
+                     path + ": cannot write the architecture as '" + ext + "' (use .json or .csv)");
   const std::string text = ext == "json" ? architecture.to_json().dump(2) + "\n"
                                          : Architecture::csv_header() + "\n" + architecture.csv_row() + "\n";
   write_file_atomically(path, [&](std::ostream& out) { out << text; });

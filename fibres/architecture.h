@@ -23,8 +23,8 @@ namespace fascicle {
 
 /// Units and the specific tension of the architecture figures.
 struct ArchitectureOptions {
-  double metres_per_unit = 0.001;       ///< length of one mesh unit in metres, > 0 (default 0.001: millimetres)
-  double specific_tension = 610000.0;   ///< N / m^2, > 0 (default 61 N/cm^2, Arnold et al. 2010's lower-limb model)
+  double metres_per_unit = 0.001;      ///< length of one mesh unit in metres, > 0 (default 0.001: millimetres)
+  double specific_tension = 610000.0;  ///< N / m^2, > 0 (default 61 N/cm^2, Arnold et al. 2010's lower-limb model)
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
@@ -40,12 +40,12 @@ struct Architecture {
   Vec3 line_of_action = Vec3::Zero();  ///< unit, origin to insertion
   double volume_m3 = 0.0;
   double muscle_length_m = 0.0;
-  Spread fibre_length_m;               ///< arc lengths
-  Spread pennation_deg;                ///< per fibre, degrees in [0, 90]
-  double fibre_to_muscle_length = 0.0; ///< mean fibre length over the muscle length
+  Spread fibre_length_m;                ///< arc lengths
+  Spread pennation_deg;                 ///< per fibre, degrees in [0, 90]
+  double fibre_to_muscle_length = 0.0;  ///< mean fibre length over the muscle length
   double pcsa_m2 = 0.0;
   double max_isometric_force_n = 0.0;
-  ArchitectureOptions options;         ///< the units and tension used
+  ArchitectureOptions options;  ///< the units and tension used
   /// The figures as JSON (keys carry their units: `_m`, `_m2`, `_m3`, `_deg`, `_n`; PCSA also in cm^2).
   nlohmann::json to_json() const;
   /// One CSV header line and one row (no newline), the columns of to_json()'s scalar figures.

@@ -79,8 +79,12 @@ void SegmentContainmentOptions::validate() const {
 }
 
 nlohmann::json SegmentContainmentReport::to_json() const {
-  return {{"crossing_before", crossing_before}, {"crossing_after", crossing_after}, {"moved", moved},
-          {"rejected", rejected}, {"sweeps", sweeps}, {"seconds", seconds}};
+  return {{"crossing_before", crossing_before},
+          {"crossing_after", crossing_after},
+          {"moved", moved},
+          {"rejected", rejected},
+          {"sweeps", sweeps},
+          {"seconds", seconds}};
 }
 
 SegmentContainmentReport contain_segments(const springs::Lattice& lattice, springs::SpringSystem& system,
@@ -131,7 +135,8 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
       if (!leaves(i, j, k)) continue;  // a patch moved for another segment took it in
       left.push_back(segment);
       const int q0 = lattice.index(i, j, k), q1 = lattice.index(i, j, k + 1);
-      const bool free0 = !system.fixed[static_cast<std::size_t>(q0)], free1 = !system.fixed[static_cast<std::size_t>(q1)];
+      const bool free0 = !system.fixed[static_cast<std::size_t>(q0)],
+                 free1 = !system.fixed[static_cast<std::size_t>(q1)];
       const Vec3 a = x[static_cast<std::size_t>(q0)], b = x[static_cast<std::size_t>(q1)];
       if (!free0 && !free1) {
         ++report.rejected;

@@ -34,16 +34,16 @@ namespace fascicle {
 
 /// Options of contain_segments().
 struct SegmentContainmentOptions {
-  int sweeps = 4;           ///< passes over all fibres; a pass that keeps no move ends the work (default 4)
+  int sweeps = 4;  ///< passes over all fibres; a pass that keeps no move ends the work (default 4)
   /// How far inside the deepest sample is moved, as a share of how far outside it was (default 0.25:
   /// relative to the excursion, not the spacing, so shifted points do not cross their neighbours).
   double margin = 0.25;
-  int samples = 16;         ///< samples along a segment for its deepest excursion (default 16)
-  int steps = 4;            ///< shifts of one move, each from the deepest sample still outside (default 4)
+  int samples = 16;  ///< samples along a segment for its deepest excursion (default 16)
+  int steps = 4;     ///< shifts of one move, each from the deepest sample still outside (default 4)
   /// Longest shift tried, in local spacings (mean spring length at the segment's points) (default 3:
   /// a segment that needs more cuts a bend too deep for a local move).
   double max_shift = 3.0;
-  int patch_radius = 3;     ///< patch of lines moved together, Chebyshev radius, 0 = alone (default 3)
+  int patch_radius = 3;  ///< patch of lines moved together, Chebyshev radius, 0 = alone (default 3)
 
   /// Throws OptionError naming the first field out of range (sweeps < 0, margin not in (0, 10],
   /// samples < 1, steps < 1, max_shift not > 0, patch_radius < 0).
@@ -58,7 +58,7 @@ struct SegmentContainmentReport {
   /// Segments left as they were in a sweep: every move undone (a test above failed), or none
   /// tried (both points fixed, no sample outside, a shift over max_shift).
   long rejected = 0;
-  int sweeps = 0;            ///< passes made
+  int sweeps = 0;  ///< passes made
   double seconds = 0.0;
   nlohmann::json to_json() const;
 };

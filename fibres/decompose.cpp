@@ -42,7 +42,8 @@ void stretch_rest_lengths(springs::SpringSystem& system, const std::vector<Vec3>
                           const std::vector<Vec3>& fitted, bool tension, nlohmann::json& report) {
   Eigen::Matrix3d cross = Eigen::Matrix3d::Zero(), gram = Eigen::Matrix3d::Zero();
   for (const springs::Spring& s : system.springs) {
-    const Vec3 t = template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
+    const Vec3 t =
+        template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
     const Vec3 h = fitted[static_cast<std::size_t>(s.b)] - fitted[static_cast<std::size_t>(s.a)];
     cross += h * t.transpose();
     gram += t * t.transpose();
@@ -52,7 +53,8 @@ void stretch_rest_lengths(springs::SpringSystem& system, const std::vector<Vec3>
   const Eigen::Matrix3d stretch = svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
   double shortest = 1e300;
   for (springs::Spring& s : system.springs) {
-    const Vec3 t = template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
+    const Vec3 t =
+        template_positions[static_cast<std::size_t>(s.b)] - template_positions[static_cast<std::size_t>(s.a)];
     s.rest = (stretch * t).norm();
     shortest = std::min(shortest, s.rest);
     if (!(s.rest > 0.0)) throw SolverError("decompose: the template stretch gives a spring of rest length 0");
@@ -173,11 +175,13 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
   nlohmann::json out = nlohmann::json::array();
   const double reach = 4.0 * (bounding_box(muscle.positions).diagonal() + 1e-300);
   const int hand = lattice_handedness(system, lattice);
-  for (const auto& [k_end, k1, k2, area] :
-       {std::tuple<int, int, int, const AttachmentArea*>{0, 1, 2, &areas.origin},
-        std::tuple<int, int, int, const AttachmentArea*>{lattice.nz - 1, lattice.nz - 2, lattice.nz - 3, &areas.insertion}}) {
+  for (const auto& [k_end, k1, k2, area] : {std::tuple<int, int, int, const AttachmentArea*>{0, 1, 2, &areas.origin},
+                                            std::tuple<int, int, int, const AttachmentArea*>{
+                                                lattice.nz - 1, lattice.nz - 2, lattice.nz - 3, &areas.insertion}}) {
     if (k2 < 0 || k2 >= lattice.nz || k1 == k_end) continue;
-    auto at = [&](int i, int j, int k) -> Vec3& { return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]; };
+    auto at = [&](int i, int j, int k) -> Vec3& {
+      return system.positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+    };
     Vec3 c1 = Vec3::Zero(), c2 = Vec3::Zero();
     int count = 0;
     for (int j = 1; j + 1 < lattice.ny; ++j)
@@ -249,7 +253,9 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     if (strip) {
       std::vector<Vec3> area_points;
       for (const SurfacePoint& p : area->points) area_points.push_back(p.position);
-      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) { return query.first_hit(start, axis, reach, end); };
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
+        return query.first_hit(start, axis, reach, end);
+      };
       const auto near = [&](const Vec3& end) {
         for (const SurfacePoint& p : area->points)
           if ((p.position - end).squaredNorm() <= radius * radius) return true;
@@ -323,10 +329,15 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     out.push_back({{"face", k_end == 0 ? "origin" : "insertion"},
                    {"cast", placed},
                    {"shrink", placed ? lambda : 0.0},
-                   {"from", folded ? (fit_layer == k1 ? "affine_fit" : fit_layer < 0 ? "layer_folded" : "affine_fit_deeper") : "layer"},
+                   {"from", folded ? (fit_layer == k1 ? "affine_fit"
+                                      : fit_layer < 0 ? "layer_folded"
+                                                      : "affine_fit_deeper")
+                                   : "layer"},
                    {"fit_layer", fit_layer},
                    {"rim", rim_cast},
-                   {"axis", used_axis == 0 ? "layer" : used_axis == 1 ? "area" : "nearest_area_point"}});
+                   {"axis", used_axis == 0   ? "layer"
+                            : used_axis == 1 ? "area"
+                                             : "nearest_area_point"}});
     if (strip) out.back()["strip_factors"] = strip_factors;
   }
   return out;
@@ -387,7 +398,7 @@ DecomposeOptions with_quality(DecomposeOptions options, Quality quality) {
     double tolerance;
     int samples;
   };
-  const Level level = quality == Quality::draft    ? Level{36, 9, 1e-4, 5000}
+  const Level level = quality == Quality::draft  ? Level{36, 9, 1e-4, 5000}
                       : quality == Quality::fine ? Level{144, 19, 1e-7, 40000}
                                                  : Level{100, 15, 1e-6, 20000};
   options.fibres = level.fibres;
@@ -476,9 +487,10 @@ nlohmann::json DecomposeReport::to_json() const {
   j["attempts"] = attempts;
   j["kept_attempt"] = kept_attempt;
   j["renderer"] = renderer;
-  j["seconds"] = {{"repair", repair_seconds},   {"surface_query", query_seconds},
-                  {"sphere", sphere_seconds},   {"placement", placement_seconds},
-                  {"settle", settle_seconds},   {"check", check_seconds},   {"total", seconds}};
+  j["seconds"] = {{"repair", repair_seconds}, {"surface_query", query_seconds},
+                  {"sphere", sphere_seconds}, {"placement", placement_seconds},
+                  {"settle", settle_seconds}, {"check", check_seconds},
+                  {"total", seconds}};
   return j;
 }
 
@@ -697,9 +709,9 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       springs::SettleReport settled;
       nlohmann::json gpu_fields = nlohmann::json::object();  // the GPU's stop and the CPU's polish
       if (options.backend == "gl") {
-  #ifdef FASCICLE_HAVE_SHADERS
-        const shaders::GpuSettleReport gpu_report = shaders::settle_gpu(gpu.get(), system, settle_options, {},
-                                                                               anchor_spring.empty() ? &shape : nullptr);
+#ifdef FASCICLE_HAVE_SHADERS
+        const shaders::GpuSettleReport gpu_report =
+            shaders::settle_gpu(gpu.get(), system, settle_options, {}, anchor_spring.empty() ? &shape : nullptr);
         report.renderer = gpu_report.renderer;
         settled = gpu_report;
         gpu_fields = {{"gpu_residual", gpu_report.gpu_residual},
@@ -707,11 +719,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                       {"polished", gpu_report.polished},
                       {"polish_iterations", gpu_report.polish_iterations},
                       {"polish_seconds", gpu_report.polish_seconds}};
-  #else
+#else
         (void)gpu;
-        throw Error(ErrorCode::gpu, "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
-                                    "was built); use --backend cpu");
-  #endif
+        throw Error(ErrorCode::gpu,
+                    "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
+                    "was built); use --backend cpu");
+#endif
       } else {
         settled = springs::settle(system, settle_options, anchor_spring.empty() ? &shape : nullptr);
       }
@@ -772,7 +785,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   }
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
-  report.containment = {{"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
+  report.containment = {
+      {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
   report.settle_seconds = since(stage);
 
   // Smoothing along fibres, free points only; a point the smoothing would move out stays.
@@ -806,7 +820,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     for (int j = 1; j + 1 < lattice.ny; ++j)
       for (int i = 1; i + 1 < lattice.nx; ++i) {
         std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
-        for (int k = 0; k < lattice.nz; ++k) line[static_cast<std::size_t>(k)] = positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+        for (int k = 0; k < lattice.nz; ++k)
+          line[static_cast<std::size_t>(k)] = positions[static_cast<std::size_t>(lattice.index(i, j, k))];
         lines.push_back(std::move(line));
         rs.push_back(i - 1);
         ss.push_back(j - 1);
@@ -820,7 +835,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   if (options.contain_segments) {
     before_segments = system.positions;
     const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
-    const SegmentContainmentReport contained = contain_segments(lattice, system, query, end_tolerance, options.segments);
+    const SegmentContainmentReport contained =
+        contain_segments(lattice, system, query, end_tolerance, options.segments);
     segments_moved = contained.moved;
     report.containment["segments"] = contained.to_json();
     report.containment["segments"]["reverted"] = false;

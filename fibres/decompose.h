@@ -59,10 +59,10 @@ namespace fascicle {
 
 /// Rest lengths of the lattice's springs in the settle (step 5).
 enum class RestShape {
-  zero,      ///< rest length 0: the settle is the discrete harmonic map (one linear solve)
-  tension,   ///< the template's, stretched to the muscle, then scaled down until every spring
-             ///< starts in tension (no spring pushes, so none buckles)
-  template_, ///< the template's, stretched by the best linear fit to the muscle
+  zero,       ///< rest length 0: the settle is the discrete harmonic map (one linear solve)
+  tension,    ///< the template's, stretched to the muscle, then scaled down until every spring
+              ///< starts in tension (no spring pushes, so none buckles)
+  template_,  ///< the template's, stretched by the best linear fit to the muscle
 };
 /// "zero", "tension", "template".
 const char* rest_shape_name(RestShape shape);
@@ -71,18 +71,18 @@ RestShape parse_rest_shape(const std::string& name);
 
 /// Options of a decomposition. Defaults are those of `fascicle decompose`.
 struct DecomposeOptions {
-  RepairOptions repair;             ///< repair stage (defaults: repair/repair.h)
-  SphereMapOptions sphere;          ///< muscle sphere map (default tutte)
-  AttachmentOptions attachments;    ///< landmark tolerance, automatic end fraction
+  RepairOptions repair;           ///< repair stage (defaults: repair/repair.h)
+  SphereMapOptions sphere;        ///< muscle sphere map (default tutte)
+  AttachmentOptions attachments;  ///< landmark tolerance, automatic end fraction
   /// Landmark areas joined into gapless strips before the placement, the cast and the check
   /// (fibres/landmark_strip.h; default on, longest join 0.1 of the length).
   StripOptions strip;
-  PlacementOptions placement;       ///< regions and alignment on the sphere
+  PlacementOptions placement;                                    ///< regions and alignment on the sphere
   springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
-  int fibres = 100;                 ///< fibres output, >= 4, split near-square (default 100)
-  int resolution = 15;              ///< points per fibre, >= 2 (default 15)
+  int fibres = 100;                                           ///< fibres output, >= 4, split near-square (default 100)
+  int resolution = 15;                                        ///< points per fibre, >= 2 (default 15)
   springs::SpringModel model = springs::SpringModel::model6;  ///< springs (default model-6)
-  RestShape rest = RestShape::tension;  ///< spring rest lengths in the settle (default tension)
+  RestShape rest = RestShape::tension;                        ///< spring rest lengths in the settle (default tension)
   /// Largest lattice whose first (harmonic) settle is one sparse Cholesky solve, >= 0 (default 8192);
   /// larger ones use multigrid (springs/multigrid.h): the factor's fill grows about as points^2.
   long harmonic_direct_points = 8192;
@@ -91,8 +91,8 @@ struct DecomposeOptions {
   /// Settle backend (default cpu): "cpu", "gl" (float32 compute shaders, finished on the CPU in double
   /// when short of the tolerance) or "auto" (the CPU: a decomposition's lattice is too small for the GPU).
   std::string backend = "cpu";
-  int cast_rounds = 2;          ///< rounds of "cast the fibre ends under the next layer, settle again"
-                                ///< (step 6), >= 0 (default 2; 0: ends stay where the sphere maps put them)
+  int cast_rounds = 2;  ///< rounds of "cast the fibre ends under the next layer, settle again"
+                        ///< (step 6), >= 0 (default 2; 0: ends stay where the sphere maps put them)
   /// Cast each attachment face's rim (surface-ring points) with its fibre ends (default true;
   /// false: the rim stays where placed, which next to a narrow end can lie inside the cast ends).
   bool cast_rim = true;
@@ -103,7 +103,7 @@ struct DecomposeOptions {
   /// Least contact depth: a point just outside goes 3x its distance out, clamped to [this, contact_depth],
   /// (0, contact_depth] (default 0.3; the retry uses 0.05: a deep target can push a point past neighbours).
   double contact_depth_min = 0.3;
-  bool untangle_cells = true;   ///< unfold the cells the settle leaves inverted (step 7) (default true)
+  bool untangle_cells = true;  ///< unfold the cells the settle leaves inverted (step 7) (default true)
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
   /// fibres/untangle_lattice.h).
   LatticeUntangleOptions untangle;
@@ -118,8 +118,8 @@ struct DecomposeOptions {
   bool contain_segments = true;
   /// Those moves: sweeps, margin, samples, largest shift (defaults: fibres/contain_segments.h).
   SegmentContainmentOptions segments;
-  int smooth_steps = 0;         ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
-  double smooth_weight = 0.5;   ///< weight of each pass, (0, 1] (default 0.5)
+  int smooth_steps = 0;        ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
+  double smooth_weight = 0.5;  ///< weight of each pass, (0, 1] (default 0.5)
   /// Units and specific tension of the architecture figures (fibres/architecture.h; default mm,
   /// 61 N/cm^2).
   ArchitectureOptions architecture;
@@ -182,16 +182,16 @@ struct Landmarks {
 
 /// What a decomposition did: every stage's figures and seconds.
 struct DecomposeReport {
-  std::string status;       ///< "ok" or "failed" (the quality check failed)
-  std::string failure;      ///< why, when failed
+  std::string status;   ///< "ok" or "failed" (the quality check failed)
+  std::string failure;  ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
   CheckReport quality;
   Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)
   /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
   /// seconds), in order, and which was kept (DecomposeOptions::landmark_twists_deg).
   nlohmann::json attempts = nlohmann::json::array();
-  int kept_attempt = 0;     ///< index into `attempts` of the result returned
-  std::string renderer;     ///< OpenGL renderer when the GPU settled, else empty
+  int kept_attempt = 0;  ///< index into `attempts` of the result returned
+  std::string renderer;  ///< OpenGL renderer when the GPU settled, else empty
   /// Seconds per stage; query_seconds: building the surface's point-location and inside-test
   /// trees, sphere_seconds: the muscle's sphere map and its locator, each once for all attempts
   /// and side by side (they overlap); seconds: the total wall time, every attempt included.

@@ -30,7 +30,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-
 double polyline_length(const std::vector<Vec3>& line) {
   double length = 0.0;
   for (std::size_t k = 0; k + 1 < line.size(); ++k) length += (line[k + 1] - line[k]).norm();
@@ -102,7 +101,9 @@ void count_inverted_cells(const Polylines& fibres, const FibreGrid& grid, int li
       for (int k = 0; k + 1 < grid.points; ++k) {
         std::array<Vec3, 8> cell;  // index a + 2b + 4c
         for (int c = 0; c < 2; ++c)
-          for (int q = 0; q < 4; ++q) cell[static_cast<std::size_t>(q + 4 * c)] = fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
+          for (int q = 0; q < 4; ++q)
+            cell[static_cast<std::size_t>(q + 4 * c)] =
+                fibres.lines[static_cast<std::size_t>(lines[q])][static_cast<std::size_t>(k + c)];
         std::array<TetVolume, 6> tets{};
         for (std::size_t t = 0; t < 6; ++t)
           tets[t] = tet_volume(cell[static_cast<std::size_t>(kuhn[t][0])], cell[static_cast<std::size_t>(kuhn[t][1])],
@@ -189,7 +190,8 @@ EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area,
     cumulative.push_back(total);
     // A triangle whose three corners are near area points is the area's as a whole (a coarse
     // mesh's automatic band: its vertices are the area's points, its triangles large).
-    whole.push_back(near_area.any_within(a, radius) && near_area.any_within(b, radius) && near_area.any_within(c, radius));
+    whole.push_back(near_area.any_within(a, radius) && near_area.any_within(b, radius) &&
+                    near_area.any_within(c, radius));
   }
   if (candidates.empty() || !(total > 0.0)) return out;
   std::mt19937_64 rng(seed);
@@ -197,7 +199,8 @@ EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area,
   std::vector<Vec3> kept;
   for (int i = 0; i < samples; ++i) {
     const double pick = unit(rng) * total;
-    const std::size_t n = static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin());
+    const std::size_t n =
+        static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin());
     const std::size_t pick_at = std::min(n, candidates.size() - 1);
     const Triangle& tri = muscle.triangles[static_cast<std::size_t>(candidates[pick_at])];
     const double u = std::sqrt(unit(rng)), v = unit(rng);
@@ -239,7 +242,8 @@ void CheckOptions::validate() const {
   if (max_inverted_cells < 0) bad("max_inverted_cells", static_cast<double>(max_inverted_cells), ">= 0");
   if (!(max_coverage_p95 > 0.0) || !std::isfinite(max_coverage_p95))
     bad("max_coverage_p95", max_coverage_p95, "> 0 and finite");
-  if (!(max_attachment > 0.0) || !std::isfinite(max_attachment)) bad("max_attachment", max_attachment, "> 0 and finite");
+  if (!(max_attachment > 0.0) || !std::isfinite(max_attachment))
+    bad("max_attachment", max_attachment, "> 0 and finite");
   if (max_crossing_segments < -1) bad("max_crossing_segments", static_cast<double>(max_crossing_segments), ">= -1");
   if (!(segment_tolerance >= 0.0) || !std::isfinite(segment_tolerance))
     bad("segment_tolerance", segment_tolerance, ">= 0 and finite");
@@ -333,7 +337,8 @@ bool fibre_segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& 
   return segment_leaves(query, a, b, k == 0 ? end_tolerance : 0.0, k + 1 == segments ? end_tolerance : 0.0);
 }
 
-double segment_excursion(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int samples, double* t, Vec3* closest) {
+double segment_excursion(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int samples, double* t,
+                         Vec3* closest) {
   double deepest = 0.0;
   for (int i = 1; i <= samples; ++i) {
     const double u = static_cast<double>(i) / (samples + 1);
@@ -364,10 +369,12 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   for (std::size_t f = 0; f < fibres.lines.size(); ++f) {
     if (fibres.lines[f].size() < 2)
       throw InputError(ErrorCode::malformed, "fibre check: fibre " + std::to_string(f) + " has " +
-                                                 std::to_string(fibres.lines[f].size()) + " point(s), needs at least 2");
+                                                 std::to_string(fibres.lines[f].size()) +
+                                                 " point(s), needs at least 2");
     for (const Vec3& p : fibres.lines[f])
       if (!p.allFinite())
-        throw InputError(ErrorCode::bad_number, "fibre check: fibre " + std::to_string(f) + " has a point that is not finite");
+        throw InputError(ErrorCode::bad_number,
+                         "fibre check: fibre " + std::to_string(f) + " has a point that is not finite");
   }
   if (muscle.triangles.empty()) throw TopologyError("fibre check: the muscle mesh has no triangles");
   const double volume = signed_volume(muscle);
@@ -375,9 +382,9 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     throw TopologyError("fibre check: the muscle has volume " + fmt_double(volume) +
                         " (needs a closed, outward-oriented surface: repair it first)");
   if (areas.origin.points.empty() || areas.insertion.points.empty())
-    throw InputError(ErrorCode::landmarks, "fibre check: the " +
-                                               std::string(areas.origin.points.empty() ? "origin" : "insertion") +
-                                               " area has no point");
+    throw InputError(
+        ErrorCode::landmarks,
+        "fibre check: the " + std::string(areas.origin.points.empty() ? "origin" : "insertion") + " area has no point");
 
   CheckReport report;
   report.thresholds = options;
@@ -433,8 +440,9 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       for (std::size_t k = 0; k < last; ++k) {
         const Vec3& a = line[k];
         const Vec3& b = line[k + 1];
-        const bool touches = !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
-                             fibre_segment_leaves(query, a, b, static_cast<int>(k), static_cast<int>(last), end_tolerance);
+        const bool touches =
+            !point_ok[first_point[f] + k] || !point_ok[first_point[f] + k + 1] ||
+            fibre_segment_leaves(query, a, b, static_cast<int>(k), static_cast<int>(last), end_tolerance);
         if (!touches) continue;
         CrossingSegment c;
         c.fibre = static_cast<int>(f);
@@ -454,7 +462,8 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
           report.crossing_examples.push_back(c);
       }
     report.segment_inside_fraction =
-        report.segments > 0 ? 1.0 - static_cast<double>(report.crossing_segments) / static_cast<double>(report.segments) : 1.0;
+        report.segments > 0 ? 1.0 - static_cast<double>(report.crossing_segments) / static_cast<double>(report.segments)
+                            : 1.0;
     report.max_segment_excursion_diagonal = diagonal > 0.0 ? report.max_segment_excursion / diagonal : 0.0;
   }
 
@@ -535,7 +544,8 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
     const std::size_t max_attempts = cells.empty() ? 0 : 1000 * wanted + 100000;
     std::size_t attempts = 0;
     while (samples.size() < wanted && attempts < max_attempts) {
-      const std::size_t batch = std::min(max_attempts - attempts, std::max<std::size_t>(1024, 2 * (wanted - samples.size())));
+      const std::size_t batch =
+          std::min(max_attempts - attempts, std::max<std::size_t>(1024, 2 * (wanted - samples.size())));
       std::vector<Vec3> candidates(batch);
       for (auto& c : candidates) {
         const Vec3 corner = inside.cell_corner(cells[pick(rng)]);
@@ -544,13 +554,15 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       }
       attempts += batch;
       std::vector<char> accepted(batch, 0);
-      tbb::parallel_for(std::size_t(0), batch, [&](std::size_t i) { accepted[i] = query.side(candidates[i]) == Side::inside; });
+      tbb::parallel_for(std::size_t(0), batch,
+                        [&](std::size_t i) { accepted[i] = query.side(candidates[i]) == Side::inside; });
       for (std::size_t i = 0; i < batch && samples.size() < wanted; ++i)
         if (accepted[i]) samples.push_back(candidates[i]);
     }
     const SegmentTree segments(fibres);
     std::vector<double> distances(samples.size());
-    tbb::parallel_for(std::size_t(0), samples.size(), [&](std::size_t i) { distances[i] = segments.nearest(samples[i]); });
+    tbb::parallel_for(std::size_t(0), samples.size(),
+                      [&](std::size_t i) { distances[i] = segments.nearest(samples[i]); });
     report.coverage.samples = static_cast<int>(samples.size());
     if (!distances.empty() && report.coverage.ideal_spacing > 0.0) {
       double total = 0.0, largest = 0.0;
@@ -737,9 +749,10 @@ std::string CheckReport::to_table() const {
                 (fmt_double(inside_fraction) + " (" + std::to_string(outside) + " out)").c_str(),
                 (">= " + fmt_double(thresholds.min_inside_fraction)).c_str(), verdict("inside"));
   out += line;
-  std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "inverted_cells",
-                lattice ? (std::to_string(inverted_cells) + " of " + std::to_string(cells)).c_str() : "n/a (no lattice)",
-                ("<= " + std::to_string(thresholds.max_inverted_cells)).c_str(), verdict("inverted_cells"));
+  std::snprintf(
+      line, sizeof(line), "%-16s %-22s %-12s %s\n", "inverted_cells",
+      lattice ? (std::to_string(inverted_cells) + " of " + std::to_string(cells)).c_str() : "n/a (no lattice)",
+      ("<= " + std::to_string(thresholds.max_inverted_cells)).c_str(), verdict("inverted_cells"));
   out += line;
   std::snprintf(line, sizeof(line), "%-16s %-22s %-12s %s\n", "coverage_p95",
                 (fmt_double(coverage.p95) + " (mean " + fmt_double(coverage.mean) + ")").c_str(),
@@ -769,9 +782,9 @@ std::string CheckReport::to_table() const {
          fmt_double(100.0 * thresholds.segment_tolerance) + " % of the diagonal)\n";
   if (turning.fibre >= 0)
     out += "largest turn at fibre " + std::to_string(turning.fibre) + ", point " + std::to_string(turning.joint) +
-           "; joints over 30 deg: " + std::to_string(turning.over_30) + ", over 45 deg: " + std::to_string(turning.over_45) +
-           " (" + std::to_string(turning.end_joints_over_45) + " at a fibre's first or last joint) of " +
-           std::to_string(turning.joints) + "\n";
+           "; joints over 30 deg: " + std::to_string(turning.over_30) +
+           ", over 45 deg: " + std::to_string(turning.over_45) + " (" + std::to_string(turning.end_joints_over_45) +
+           " at a fibre's first or last joint) of " + std::to_string(turning.joints) + "\n";
   out += "fibres " + std::to_string(fibres) + ", points " + std::to_string(points) + ", ideal spacing " +
          fmt_double(coverage.ideal_spacing) + " (" + std::to_string(coverage.samples) + " samples)\n";
   if (coverage.samples > 0) {
@@ -786,17 +799,19 @@ std::string CheckReport::to_table() const {
     out += "far samples (> " + fmt_double(coverage.far.threshold) + " spacings): " + total +
            " %; per tenth, origin to insertion:";
     for (int b = 0; b < FarSamples::kAlongBins; ++b)
-      out += " " + share(coverage.far.along_far[static_cast<std::size_t>(b)], coverage.far.along_samples[static_cast<std::size_t>(b)]);
+      out += " " + share(coverage.far.along_far[static_cast<std::size_t>(b)],
+                         coverage.far.along_samples[static_cast<std::size_t>(b)]);
     out += " %; by depth 0-1, 1-2, 2-4, 4+ spacings:";
     for (int b = 0; b < FarSamples::kDepthBins; ++b)
-      out += " " + share(coverage.far.depth_far[static_cast<std::size_t>(b)], coverage.far.depth_samples[static_cast<std::size_t>(b)]);
+      out += " " + share(coverage.far.depth_far[static_cast<std::size_t>(b)],
+                         coverage.far.depth_samples[static_cast<std::size_t>(b)]);
     out += " %\n";
   }
   out += "length mean " + fmt_double(length.mean) + ", min " + fmt_double(length.min) + ", max " +
          fmt_double(length.max) + ", cv " + fmt_double(length.cv) + "; largest turning angle " +
          fmt_double(max_turning_angle_deg) + " deg\n";
-  out += "steps mean " + fmt_double(steps.mean) + "; longest / mean per fibre: median " + fmt_double(steps.median_ratio) +
-         ", largest " + fmt_double(steps.max_ratio);
+  out += "steps mean " + fmt_double(steps.mean) + "; longest / mean per fibre: median " +
+         fmt_double(steps.median_ratio) + ", largest " + fmt_double(steps.max_ratio);
   if (steps.worst_fibre >= 0)
     out += " (fibre " + std::to_string(steps.worst_fibre) + " between points " + std::to_string(steps.worst_segment) +
            " and " + std::to_string(steps.worst_segment + 1) + ")";
@@ -810,8 +825,8 @@ std::string CheckReport::to_table() const {
            std::to_string(c.segment + 1) + ", " + fmt_double(c.excursion) + " outside the surface\n";
   for (const OutsidePoint& o : outside_examples)
     out += "outside: fibre " + std::to_string(o.fibre) + " point " + std::to_string(o.point) + " at (" +
-           fmt_double(o.position.x()) + ", " + fmt_double(o.position.y()) + ", " + fmt_double(o.position.z()) +
-           "), " + fmt_double(o.distance) + " from the surface\n";
+           fmt_double(o.position.x()) + ", " + fmt_double(o.position.y()) + ", " + fmt_double(o.position.z()) + "), " +
+           fmt_double(o.distance) + " from the surface\n";
   std::string result = pass ? "pass" : "FAIL:";
   for (const auto& f : failed) result += " " + f;
   out += "result: " + result + " (" + fmt_double(seconds) + " s)\n";
@@ -826,19 +841,20 @@ std::string CheckReport::summary() const {
   out += " inside " + fmt_double(inside_fraction) + " (>= " + fmt_double(thresholds.min_inside_fraction) + ")" +
          verdict("inside");
   if (lattice)
-    out += ", inverted cells " + std::to_string(inverted_cells) + " (<= " + std::to_string(thresholds.max_inverted_cells) +
-           ")" + verdict("inverted_cells");
+    out += ", inverted cells " + std::to_string(inverted_cells) +
+           " (<= " + std::to_string(thresholds.max_inverted_cells) + ")" + verdict("inverted_cells");
   out += ", coverage p95 " + fmt_double(coverage.p95) + " (<= " + fmt_double(thresholds.max_coverage_p95) + ")" +
          verdict("coverage");
-  out += ", attachment " + fmt_double(std::max(attachment.origin_max, attachment.insertion_max)) + " (<= " +
-         fmt_double(thresholds.max_attachment) + ")" + verdict("attachment");
-  out += ", segments out " + std::to_string(crossing_segments) + " (<= " +
-         (thresholds.max_crossing_segments >= 0 ? std::to_string(thresholds.max_crossing_segments) : std::string("any")) +
-         " beyond " + fmt_double(100.0 * thresholds.segment_tolerance) + " %)" + verdict("segments");
+  out += ", attachment " + fmt_double(std::max(attachment.origin_max, attachment.insertion_max)) +
+         " (<= " + fmt_double(thresholds.max_attachment) + ")" + verdict("attachment");
+  out +=
+      ", segments out " + std::to_string(crossing_segments) + " (<= " +
+      (thresholds.max_crossing_segments >= 0 ? std::to_string(thresholds.max_crossing_segments) : std::string("any")) +
+      " beyond " + fmt_double(100.0 * thresholds.segment_tolerance) + " %)" + verdict("segments");
   out += ", turning " + fmt_double(turning.max_deg) + " deg (<= " + fmt_double(thresholds.max_turning_angle_deg) + ")" +
          verdict("smooth");
-  out += ", ends " + fmt_double(origin_ends.share) + " / " + fmt_double(insertion_ends.share) + " (>= " +
-         fmt_double(thresholds.min_end_coverage) + ")" + verdict("ends");
+  out += ", ends " + fmt_double(origin_ends.share) + " / " + fmt_double(insertion_ends.share) +
+         " (>= " + fmt_double(thresholds.min_end_coverage) + ")" + verdict("ends");
   return out;
 }
 

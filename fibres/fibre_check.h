@@ -171,12 +171,12 @@ struct LengthFigures {
 /// one segment several times its others is sampled coarsely there: a curved muscle's surface can
 /// cut such a segment although both its points are inside (as round a hooked tendon end).
 struct StepFigures {
-  double mean = 0.0;          ///< mean segment length over all segments
+  double mean = 0.0;  ///< mean segment length over all segments
   /// Per fibre, its longest segment divided by its mean segment: the largest over the fibres,
   /// and the median.
   double max_ratio = 0.0, median_ratio = 0.0;
-  int worst_fibre = -1;       ///< the fibre with max_ratio (line index), -1 when there is none
-  int worst_segment = -1;     ///< its longest segment (index of its first point)
+  int worst_fibre = -1;    ///< the fibre with max_ratio (line index), -1 when there is none
+  int worst_segment = -1;  ///< its longest segment (index of its first point)
   /// When every fibre has the same number of points: the mean length of segment k over the
   /// fibres, k = 0 .. points - 2 (the lattice's layer steps), and the longest of them divided
   /// by their median (layer_ratio); empty and 0 otherwise.
@@ -186,58 +186,58 @@ struct StepFigures {
 
 /// Turning angles between consecutive segments (degrees).
 struct TurningFigures {
-  double max_deg = 0.0;   ///< largest turning angle
-  int fibre = -1;         ///< where: line index, -1 when no fibre has a joint
-  int joint = -1;         ///< the joint's point index along the fibre (1 .. points - 2)
-  long joints = 0;        ///< joints measured (interior points whose both segments have a length)
+  double max_deg = 0.0;           ///< largest turning angle
+  int fibre = -1;                 ///< where: line index, -1 when no fibre has a joint
+  int joint = -1;                 ///< the joint's point index along the fibre (1 .. points - 2)
+  long joints = 0;                ///< joints measured (interior points whose both segments have a length)
   long over_30 = 0, over_45 = 0;  ///< joints turning by more than 30 and 45 degrees
   long end_joints_over_45 = 0;    ///< of those over 45, the first or last joint of a fibre
 };
 
 /// How the fibre ends cover one attachment area (the ends criterion).
 struct EndCoverage {
-  double share = 0.0;     ///< fraction of the area's samples within one ideal spacing of an end
-  double spacing = 0.0;   ///< ideal end spacing sqrt(area / F), mesh units
-  double area = 0.0;      ///< the area's surface, mesh units squared (estimated from the samples)
-  int samples = 0;        ///< samples drawn on it
+  double share = 0.0;    ///< fraction of the area's samples within one ideal spacing of an end
+  double spacing = 0.0;  ///< ideal end spacing sqrt(area / F), mesh units
+  double area = 0.0;     ///< the area's surface, mesh units squared (estimated from the samples)
+  int samples = 0;       ///< samples drawn on it
 };
 
 /// Result of check_fibres. `pass` is true when no criterion failed; `failed` names the failed
 /// ones ("inside", "inverted_cells", "coverage", "attachment", "segments", "smooth", "ends").
 struct CheckReport {
-  long fibres = 0;                        ///< fibre count F
-  long points = 0;                        ///< fibre points in all
-  long inside_points = 0;                 ///< points that passed the inside test
-  double inside_fraction = 0.0;           ///< inside_points / points
-  long outside = 0;                       ///< points - inside_points
+  long fibres = 0;                             ///< fibre count F
+  long points = 0;                             ///< fibre points in all
+  long inside_points = 0;                      ///< points that passed the inside test
+  double inside_fraction = 0.0;                ///< inside_points / points
+  long outside = 0;                            ///< points - inside_points
   std::vector<OutsidePoint> outside_examples;  ///< the first options.outside_listed of them
-  long segments = 0;                      ///< segments in all (points - fibres)
-  long crossing_segments = 0;             ///< segments out by more than the tolerance (judged)
-  long touching_segments = 0;             ///< segments the surface cuts at all (reported)
-  double segment_inside_fraction = 0.0;   ///< 1 - crossing_segments / segments
+  long segments = 0;                           ///< segments in all (points - fibres)
+  long crossing_segments = 0;                  ///< segments out by more than the tolerance (judged)
+  long touching_segments = 0;                  ///< segments the surface cuts at all (reported)
+  double segment_inside_fraction = 0.0;        ///< 1 - crossing_segments / segments
   /// Largest excursion of a segment outside the surface (mesh units, sampled), the same as a
   /// fraction of the muscle length (attachment.muscle_length) and of the bounding-box diagonal
   /// (the criterion's measure).
   double max_segment_excursion = 0.0, max_segment_excursion_relative = 0.0, max_segment_excursion_diagonal = 0.0;
   std::vector<CrossingSegment> crossing_examples;  ///< the first options.outside_listed of them
-  bool lattice = false;                   ///< the fibres carry a lattice (fibre_r, fibre_s)
-  int lattice_nr = 0, lattice_ns = 0;     ///< lattice index ranges (0 when not a lattice)
-  long cells = 0;                         ///< lattice cells checked (0 when not a lattice)
-  long inverted_cells = 0;                ///< cells with an inverted or flat tetrahedron
+  bool lattice = false;                            ///< the fibres carry a lattice (fibre_r, fibre_s)
+  int lattice_nr = 0, lattice_ns = 0;              ///< lattice index ranges (0 when not a lattice)
+  long cells = 0;                                  ///< lattice cells checked (0 when not a lattice)
+  long inverted_cells = 0;                         ///< cells with an inverted or flat tetrahedron
   /// (r, s, k) of the first options.outside_listed inverted cells: the cell between fibres
   /// (r..r+1, s..s+1) and points k, k+1.
   std::vector<std::array<int, 3>> inverted_examples;
   CoverageFigures coverage;
   AttachmentFigures attachment;
   LengthFigures length;
-  StepFigures steps;                      ///< point spacing along the fibres (reported, not judged)
-  double max_turning_angle_deg = 0.0;     ///< largest angle between consecutive segments
-  TurningFigures turning;                 ///< the turning angles in detail (smooth criterion)
+  StepFigures steps;                        ///< point spacing along the fibres (reported, not judged)
+  double max_turning_angle_deg = 0.0;       ///< largest angle between consecutive segments
+  TurningFigures turning;                   ///< the turning angles in detail (smooth criterion)
   EndCoverage origin_ends, insertion_ends;  ///< the ends criterion, per area
-  CheckOptions thresholds;                ///< the options the check ran with
+  CheckOptions thresholds;                  ///< the options the check ran with
   bool pass = false;
-  std::vector<std::string> failed;        ///< names of the failed criteria, in the order above
-  double seconds = 0.0;                   ///< wall time of the check
+  std::vector<std::string> failed;  ///< names of the failed criteria, in the order above
+  double seconds = 0.0;             ///< wall time of the check
 
   /// The report as JSON: every field above (thresholds under "thresholds").
   nlohmann::json to_json() const;

@@ -18,9 +18,9 @@ inline constexpr const char* fibre_s_array = "fibre_s";
 
 /// Lattice structure of a set of fibres.
 struct FibreGrid {
-  int nr = 0, ns = 0;          ///< index ranges r in [0, nr), s in [0, ns); 0 when not a lattice
-  int points = 0;              ///< points per fibre (the same for every fibre)
-  std::vector<int> line_of;    ///< nr * ns entries: the line at (r, s) is line_of[r + nr s], or -1
+  int nr = 0, ns = 0;        ///< index ranges r in [0, nr), s in [0, ns); 0 when not a lattice
+  int points = 0;            ///< points per fibre (the same for every fibre)
+  std::vector<int> line_of;  ///< nr * ns entries: the line at (r, s) is line_of[r + nr s], or -1
   /// True when the fibres form a lattice (nr, ns > 0).
   bool is_lattice() const { return nr > 0 && ns > 0; }
   /// The line index at (r, s), or -1 when out of range or absent.

@@ -19,8 +19,8 @@ void StripOptions::validate() const {
 }
 
 nlohmann::json StripReport::to_json() const {
-  return {{"joined", joined},   {"landmarks", landmarks}, {"joins", joins},
-          {"gaps", gaps},       {"added", added},         {"longest_join", longest_join}};
+  return {{"joined", joined}, {"landmarks", landmarks}, {"joins", joins},
+          {"gaps", gaps},     {"added", added},         {"longest_join", longest_join}};
 }
 
 AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuery& query, double length,
@@ -47,7 +47,8 @@ AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuer
   for (int round = 0; round < n; ++round) {
     int u = -1;
     for (int v = 0; v < n; ++v)
-      if (!in_tree[static_cast<std::size_t>(v)] && (u < 0 || best[static_cast<std::size_t>(v)] < best[static_cast<std::size_t>(u)]))
+      if (!in_tree[static_cast<std::size_t>(v)] &&
+          (u < 0 || best[static_cast<std::size_t>(v)] < best[static_cast<std::size_t>(u)]))
         u = v;
     in_tree[static_cast<std::size_t>(u)] = 1;
     const int p = parent[static_cast<std::size_t>(u)];
@@ -71,7 +72,8 @@ AttachmentArea join_landmark_strip(const AttachmentArea& area, const SurfaceQuer
     for (int v = 0; v < n; ++v) {
       if (in_tree[static_cast<std::size_t>(v)]) continue;
       const double d = (at(v) - at(u)).squaredNorm();
-      if (d < best[static_cast<std::size_t>(v)] * best[static_cast<std::size_t>(v)] || !std::isfinite(best[static_cast<std::size_t>(v)])) {
+      if (d < best[static_cast<std::size_t>(v)] * best[static_cast<std::size_t>(v)] ||
+          !std::isfinite(best[static_cast<std::size_t>(v)])) {
         best[static_cast<std::size_t>(v)] = std::sqrt(d);
         parent[static_cast<std::size_t>(v)] = u;
       }

@@ -37,9 +37,9 @@ class PoleFrame {
   static Vec3 from_stereographic(std::complex<double> w);
 
  private:
-  Eigen::Matrix3d rotation_;     // origin -> north pole
-  std::complex<double> pole_;    // stereographic coordinate of the rotated insertion
-  bool moebius_ = false;         // false when the insertion is already at the south pole
+  Eigen::Matrix3d rotation_;   // origin -> north pole
+  std::complex<double> pole_;  // stereographic coordinate of the rotated insertion
+  bool moebius_ = false;       // false when the insertion is already at the south pole
   double scale_ = 1.0;
 };
 

@@ -19,10 +19,10 @@ namespace fascicle {
 
 /// The result of cast_strip_face().
 struct StripCast {
-  bool placed = false;           ///< a pair of factors put every end near the area
-  double lambda_long = 0.0;      ///< factor along the strip (0 when not placed)
-  double lambda_cross = 0.0;     ///< factor across it (0 when not placed)
-  std::vector<Vec3> ends;        ///< the ends, in the order of `offsets` (empty when not placed)
+  bool placed = false;        ///< a pair of factors put every end near the area
+  double lambda_long = 0.0;   ///< factor along the strip (0 when not placed)
+  double lambda_cross = 0.0;  ///< factor across it (0 when not placed)
+  std::vector<Vec3> ends;     ///< the ends, in the order of `offsets` (empty when not placed)
 };
 
 /// Casts ends from `centre` + scaled `offsets` along `axis`. `area_points`: the area's points;

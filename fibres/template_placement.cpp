@@ -96,8 +96,7 @@ int region_centre(const TriangleMesh& mesh, const std::vector<Vec3>& sphere, con
   std::vector<Vec3> border_points;
   for (std::size_t v = 0; v < border.size(); ++v)
     if (border[v]) border_points.push_back(sphere[v]);
-  if (border_points.empty())
-    throw InputError(ErrorCode::landmarks, name + " area covers the whole muscle");
+  if (border_points.empty()) throw InputError(ErrorCode::landmarks, name + " area covers the whole muscle");
   int best = -1;
   double best_cos = 2.0;  // smallest max-cosine = farthest from the border
   for (std::size_t v = 0; v < in.size(); ++v) {
@@ -233,8 +232,10 @@ double square_perimeter_share(double phi) {
   const double m = std::max(std::abs(c), std::abs(s));
   const double x = c / m, y = s / m;
   double share;
-  if (std::abs(s) >= std::abs(c)) share = s < 0.0 ? 0.125 * (x + 1.0) : 0.5 + 0.125 * (1.0 - x);
-  else share = c > 0.0 ? 0.25 + 0.125 * (y + 1.0) : 0.75 + 0.125 * (1.0 - y);
+  if (std::abs(s) >= std::abs(c))
+    share = s < 0.0 ? 0.125 * (x + 1.0) : 0.5 + 0.125 * (1.0 - x);
+  else
+    share = c > 0.0 ? 0.25 + 0.125 * (y + 1.0) : 0.75 + 0.125 * (1.0 - y);
   return std::clamp(share, 0.0, 1.0);
 }
 
@@ -247,8 +248,7 @@ void PlacementOptions::validate() const {
     throw OptionError("region_margin: must be in (0, 1], got " + std::to_string(region_margin));
   if (azimuth_bins < 8 || azimuth_bins > 4096)
     throw OptionError("azimuth_bins: must be in 8..4096, got " + std::to_string(azimuth_bins));
-  if (!(max_face_depth > 0.0))
-    throw OptionError("max_face_depth: must be > 0, got " + std::to_string(max_face_depth));
+  if (!(max_face_depth > 0.0)) throw OptionError("max_face_depth: must be > 0, got " + std::to_string(max_face_depth));
   if (face_shrink_rounds < 0 || face_shrink_rounds > 100)
     throw OptionError("face_shrink_rounds: must be in 0..100, got " + std::to_string(face_shrink_rounds));
   if (!(min_band > 0.0 && min_band < 3.0))
@@ -299,9 +299,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   const bool toward_end = !areas.automatic && options.landmark_centre_keep < 1.0;
   const int origin_vertex = region_centre(muscle, sphere, origin_in, "origin (" + areas.origin.source + ")",
                                           toward_end ? &insertion_centroid : nullptr, options.landmark_centre_keep);
-  const int insertion_vertex =
-      region_centre(muscle, sphere, insertion_in, "insertion (" + areas.insertion.source + ")",
-                    toward_end ? &origin_centroid : nullptr, options.landmark_centre_keep);
+  const int insertion_vertex = region_centre(muscle, sphere, insertion_in, "insertion (" + areas.insertion.source + ")",
+                                             toward_end ? &origin_centroid : nullptr, options.landmark_centre_keep);
   const Vec3 origin_centre = sphere[static_cast<std::size_t>(origin_vertex)];
   const Vec3 insertion_centre = sphere[static_cast<std::size_t>(insertion_vertex)];
   report.origin_centre = muscle.positions[static_cast<std::size_t>(origin_vertex)];
@@ -317,9 +316,9 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   const std::size_t nv = muscle.positions.size();
   std::vector<double> vertex_area(nv, 0.0);
   for (const Triangle& t : muscle.triangles) {
-    const double a = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
-                                .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
-                                .norm();
+    const double a =
+        0.5 *
+        (muscle.positions[t[1]] - muscle.positions[t[0]]).cross(muscle.positions[t[2]] - muscle.positions[t[0]]).norm();
     for (int c = 0; c < 3; ++c) vertex_area[t[c]] += a / 3.0;
   }
   {
@@ -394,9 +393,9 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     face_theta[f] = polar_angle(c);
     face_ro[f] = origin_radius(face_phi[f]);
     face_ri[f] = insertion_radius(face_phi[f]);
-    face_area[f] = 0.5 * (muscle.positions[t[1]] - muscle.positions[t[0]])
-                             .cross(muscle.positions[t[2]] - muscle.positions[t[0]])
-                             .norm();
+    face_area[f] =
+        0.5 *
+        (muscle.positions[t[1]] - muscle.positions[t[0]]).cross(muscle.positions[t[2]] - muscle.positions[t[0]]).norm();
   });
   // Meridian rings: each face's centre and azimuth sector (neither depends on the face scales).
   constexpr int kMeridians = 24;
@@ -429,11 +428,10 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   constexpr int kBandBins = 512;
   Cumulative template_band(kBandBins);
   for (const Triangle& t : lattice.surface) {
-    const Vec3 c =
-        (template_pole_vector(springs::lattice_coordinates(lattice, t[0])) +
-         template_pole_vector(springs::lattice_coordinates(lattice, t[1])) +
-         template_pole_vector(springs::lattice_coordinates(lattice, t[2])))
-            .normalized();
+    const Vec3 c = (template_pole_vector(springs::lattice_coordinates(lattice, t[0])) +
+                    template_pole_vector(springs::lattice_coordinates(lattice, t[1])) +
+                    template_pole_vector(springs::lattice_coordinates(lattice, t[2])))
+                       .normalized();
     const double edge = face_edge(azimuth(c));
     const double u = (polar_angle(c) - edge) / (kPi - 2.0 * edge);
     const auto& p = lattice.system.positions;
@@ -462,7 +460,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       level_area[static_cast<std::size_t>(b)] += vertex_area[v];
     }
     for (int b = 0; b < kLevels; ++b)
-      if (level_area[static_cast<std::size_t>(b)] > 0.0) level_centre[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
+      if (level_area[static_cast<std::size_t>(b)] > 0.0)
+        level_centre[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
     for (std::size_t v = 0; v < nv; ++v) {
       if (level_of[v] < 0) continue;
       const auto b = static_cast<std::size_t>(level_of[v]);
@@ -479,7 +478,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         level_radius[static_cast<std::size_t>(level_of[v])] +=
             vertex_area[v] * (muscle.positions[v] - level_centre[static_cast<std::size_t>(level_of[v])]).norm();
     for (int b = 0; b < kLevels; ++b)
-      if (level_area[static_cast<std::size_t>(b)] > 0.0) level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
+      if (level_area[static_cast<std::size_t>(b)] > 0.0)
+        level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
     for (std::size_t f = 0; f < n_faces; ++f) {
       const double ro = so * face_ro[f], ri = si * face_ri[f];
       const double u = (face_theta[f] - ro) / (kPi - ri - ro);
@@ -663,8 +663,9 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
             if (l < 0 || l >= kRingLevels) continue;
             const auto& row = mass[static_cast<std::size_t>(l)];
             const double w = dl == 0 ? 1.0 : 0.5;
-            m += w * (0.25 * row[static_cast<std::size_t>((b + kRingBins - 1) % kRingBins)] +
-                      0.5 * row[static_cast<std::size_t>(b)] + 0.25 * row[static_cast<std::size_t>((b + 1) % kRingBins)]);
+            m += w *
+                 (0.25 * row[static_cast<std::size_t>((b + kRingBins - 1) % kRingBins)] +
+                  0.5 * row[static_cast<std::size_t>(b)] + 0.25 * row[static_cast<std::size_t>((b + 1) % kRingBins)]);
           }
           muscle_ring[static_cast<std::size_t>(level)].add((b + 0.5) / kRingBins, m);
         }
@@ -725,7 +726,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       sp.distance = 0.0;
       out.points[static_cast<std::size_t>(surface_points[i])] = sp;
     }
-
   };
 
   // An attachment face must not be deeper (along the muscle, from its first fibre points to its

@@ -56,7 +56,7 @@ struct PlacementOptions {
   /// Factor on a region's star radius before the face is mapped into it (default 0.9: face points
   /// stay clear of the region's border).
   double region_margin = 0.9;
-  int azimuth_bins = 72;      ///< azimuth bins for a region's star radius (default 72, every 5 degrees)
+  int azimuth_bins = 72;  ///< azimuth bins for a region's star radius (default 72, every 5 degrees)
   /// Least polar-angle gap (radians) left for the lateral band; both regions' star radii shrink
   /// together to keep it (default 0.3).
   double min_band = 0.3;
@@ -86,16 +86,16 @@ struct PlacementOptions {
 /// What the placement did.
 struct PlacementReport {
   int origin_region_vertices = 0, insertion_region_vertices = 0;
-  double centre_angle_deg = 0.0;   ///< angle between the two region centres on the muscle sphere
+  double centre_angle_deg = 0.0;         ///< angle between the two region centres on the muscle sphere
   Vec3 origin_centre = Vec3::Zero();     ///< the origin region's centre on the muscle (a vertex)
   Vec3 insertion_centre = Vec3::Zero();  ///< ... and the insertion region's
-  double moebius_scale = 1.0;      ///< scale of the muscle's pole frame (median area at the equator)
-  double twist_deg = 0.0;          ///< azimuth of the template's r axis at the origin face
-  double twist_end_deg = 0.0;      ///< ... and at the insertion face (it varies along the band)
+  double moebius_scale = 1.0;            ///< scale of the muscle's pole frame (median area at the equator)
+  double twist_deg = 0.0;                ///< azimuth of the template's r axis at the origin face
+  double twist_end_deg = 0.0;            ///< ... and at the insertion face (it varies along the band)
   double origin_radius_min_deg = 0.0, origin_radius_max_deg = 0.0;        ///< R_o(phi) range
   double insertion_radius_min_deg = 0.0, insertion_radius_max_deg = 0.0;  ///< R_i(phi) range
-  double origin_face_scale = 1.0, insertion_face_scale = 1.0;  ///< share of R(phi) the faces use
-  long located = 0;                ///< template surface points located on the muscle
+  double origin_face_scale = 1.0, insertion_face_scale = 1.0;             ///< share of R(phi) the faces use
+  long located = 0;  ///< template surface points located on the muscle
   double seconds = 0.0;
   nlohmann::json to_json() const;
 };

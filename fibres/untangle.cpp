@@ -110,8 +110,10 @@ class Energy {
         if (tet.v[static_cast<std::size_t>(v)] > std::numeric_limits<int>::max() / 3)
           throw Error(ErrorCode::internal, "untangle: too many points for the vector terms");
         corner_offsets_[static_cast<std::size_t>(v)][a] = 3 * tet.v[static_cast<std::size_t>(v)];
-        corner_slots[a][static_cast<std::size_t>(v)] = slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
-        if (corner_slots[a][static_cast<std::size_t>(v)] >= 0) ++count[static_cast<std::size_t>(corner_slots[a][static_cast<std::size_t>(v)]) + 1];
+        corner_slots[a][static_cast<std::size_t>(v)] =
+            slot_[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(v)])];
+        if (corner_slots[a][static_cast<std::size_t>(v)] >= 0)
+          ++count[static_cast<std::size_t>(corner_slots[a][static_cast<std::size_t>(v)]) + 1];
       }
       for (int k = 0; k < 9; ++k) reference_[static_cast<std::size_t>(k)][a] = tet.reference_inverse.data()[k];
       weight_[a] = tet.weight;
@@ -123,7 +125,9 @@ class Energy {
     for (std::size_t a = 0; a < n; ++a)
       for (int v = 0; v < 4; ++v) {
         const int s = corner_slots[a][static_cast<std::size_t>(v)];
-        if (s >= 0) corners_[static_cast<std::size_t>(count[static_cast<std::size_t>(s)]++)] = static_cast<int>(4 * a + static_cast<std::size_t>(v));
+        if (s >= 0)
+          corners_[static_cast<std::size_t>(count[static_cast<std::size_t>(s)]++)] =
+              static_cast<int>(4 * a + static_cast<std::size_t>(v));
       }
     if (containment.signed_distance)
       for (const UntangleContainment::Point& c : containment.points)
@@ -141,11 +145,13 @@ class Energy {
   std::size_t free_count() const { return free_.size(); }
   Eigen::VectorXd get() const {
     Eigen::VectorXd x(3 * static_cast<Eigen::Index>(free_.size()));
-    for (std::size_t f = 0; f < free_.size(); ++f) x.segment<3>(3 * static_cast<Eigen::Index>(f)) = positions_[static_cast<std::size_t>(free_[f])];
+    for (std::size_t f = 0; f < free_.size(); ++f)
+      x.segment<3>(3 * static_cast<Eigen::Index>(f)) = positions_[static_cast<std::size_t>(free_[f])];
     return x;
   }
   void set(const Eigen::VectorXd& x) {
-    for (std::size_t f = 0; f < free_.size(); ++f) positions_[static_cast<std::size_t>(free_[f])] = x.segment<3>(3 * static_cast<Eigen::Index>(f));
+    for (std::size_t f = 0; f < free_.size(); ++f)
+      positions_[static_cast<std::size_t>(free_[f])] = x.segment<3>(3 * static_cast<Eigen::Index>(f));
   }
   // Energy at x (with eps), gradient into g when given. The tetrahedra's terms are computed in
   // parallel (one slot each) and summed in their order, so the result is the same, bit for bit,
@@ -180,8 +186,8 @@ class Energy {
             r[k] = reference_[k].data() + begin;
             gradient[k] = g ? gradients_[k].data() + begin : nullptr;
           }
-          detail::untangle_terms_simd(lanes, base, corners, r, weight_.data() + begin, eps_floor_.data() + begin, eps, lambda_,
-                                      terms_.data() + begin, g ? gradient : nullptr);
+          detail::untangle_terms_simd(lanes, base, corners, r, weight_.data() + begin, eps_floor_.data() + begin, eps,
+                                      lambda_, terms_.data() + begin, g ? gradient : nullptr);
         }
       }
       Eigen::Matrix3d js[kBlock], references[kBlock];
@@ -244,7 +250,8 @@ class Energy {
             const int corner = corners_[static_cast<std::size_t>(k)] % 4;
             Vec3 column;
             if (corner > 0) {
-              for (int row = 0; row < 3; ++row) column[row] = gradients_[static_cast<std::size_t>(row + 3 * (corner - 1))][a];
+              for (int row = 0; row < 3; ++row)
+                column[row] = gradients_[static_cast<std::size_t>(row + 3 * (corner - 1))][a];
             } else {
               column = Vec3::Zero();
               for (int col = 0; col < 3; ++col)
@@ -289,7 +296,8 @@ class Energy {
     // order: the signed distance may fill a cache).
     for (const UntangleContainment::Point& c : contained_) {
       Vec3 gradient = Vec3::Zero();
-      const double d = containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], g ? &gradient : nullptr);
+      const double d =
+          containment_.signed_distance(positions_[static_cast<std::size_t>(c.point)], g ? &gradient : nullptr);
       const double over = d + c.margin;
       if (!(over > 0.0)) continue;
       const double w = c.weight * containment_scale;
@@ -367,8 +375,10 @@ int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int
       alpha[i] = rho * pairs[i].s.dot(q);
       q -= alpha[i] * pairs[i].y;
     }
-    if (!pairs.empty()) q *= pairs.back().sy / pairs.back().y.squaredNorm();
-    else q *= 1.0 / std::max(1.0, g.cwiseAbs().maxCoeff());
+    if (!pairs.empty())
+      q *= pairs.back().sy / pairs.back().y.squaredNorm();
+    else
+      q *= 1.0 / std::max(1.0, g.cwiseAbs().maxCoeff());
     for (std::size_t i = 0; i < pairs.size(); ++i) {
       const double rho = 1.0 / pairs[i].sy;
       const double beta = rho * pairs[i].y.dot(q);
@@ -421,8 +431,10 @@ int minimise(Energy& energy, Eigen::VectorXd& x, double eps, int iterations, int
 }  // namespace
 
 void UntangleOptions::validate() const {
-  if (!(lambda > 0.0 && lambda < 1.0)) throw OptionError("untangle lambda: must be in (0, 1), got " + std::to_string(lambda));
-  if (history < 1 || history > 100) throw OptionError("untangle history: must be in 1..100, got " + std::to_string(history));
+  if (!(lambda > 0.0 && lambda < 1.0))
+    throw OptionError("untangle lambda: must be in (0, 1), got " + std::to_string(lambda));
+  if (history < 1 || history > 100)
+    throw OptionError("untangle history: must be in 1..100, got " + std::to_string(history));
   if (stage_iterations < 1 || stage_iterations > 100000)
     throw OptionError("untangle stage_iterations: must be in 1..100000, got " + std::to_string(stage_iterations));
   if (stall_stages < 1 || stall_stages > 10000)
@@ -433,7 +445,8 @@ void UntangleOptions::validate() const {
     throw OptionError("untangle polish_iterations: must be in 0..100000, got " + std::to_string(polish_iterations));
   if (!(min_sigma > 0.0 && min_sigma < 1.0))
     throw OptionError("untangle min_sigma: must be in (0, 1), got " + std::to_string(min_sigma));
-  if (!(min_det >= 0.0 && min_det < 1.0)) throw OptionError("untangle min_det: must be in [0, 1), got " + std::to_string(min_det));
+  if (!(min_det >= 0.0 && min_det < 1.0))
+    throw OptionError("untangle min_det: must be in [0, 1), got " + std::to_string(min_det));
 }
 
 nlohmann::json UntangleReport::to_json() const {
@@ -483,7 +496,8 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
     if (!(containment.growth >= 1.0) || !(containment.max_scale >= 1.0))
       throw Error(ErrorCode::internal, "untangle: containment growth and max_scale must be >= 1");
     for (const UntangleContainment::Point& c : containment.points)
-      if (c.point < 0 || static_cast<std::size_t>(c.point) >= positions.size() || !(c.weight >= 0.0) || !(c.margin >= 0.0))
+      if (c.point < 0 || static_cast<std::size_t>(c.point) >= positions.size() || !(c.weight >= 0.0) ||
+          !(c.margin >= 0.0))
         throw Error(ErrorCode::internal, "untangle: bad containment point " + std::to_string(c.point));
   }
   for (const Vec3& p : positions)
@@ -572,8 +586,10 @@ UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& f
       const double polish_eps = std::min(report.eps, 1e-8);
       report.iterations += minimise(energy, x, polish_eps, options.polish_iterations, options.history);
       const Census polished = census(positions, tets, options.min_det);
-      if (polished.inverted == 0) now = polished;
-      else positions = untangled;
+      if (polished.inverted == 0)
+        now = polished;
+      else
+        positions = untangled;
     }
   }
   report.inverted_after = now.inverted;

@@ -33,10 +33,10 @@ namespace fascicle {
 
 /// Options of untangle().
 struct UntangleOptions {
-  double lambda = 0.05;        ///< weight of the volume term against the shape term, (0, 1) (default 0.05)
-  int history = 8;             ///< L-BFGS pairs kept, >= 1 (default 8)
-  int stage_iterations = 40;   ///< L-BFGS iterations per eps stage, >= 1 (default 40)
-  int max_stages = 60;         ///< eps stages at most, >= 1 (default 60)
+  double lambda = 0.05;       ///< weight of the volume term against the shape term, (0, 1) (default 0.05)
+  int history = 8;            ///< L-BFGS pairs kept, >= 1 (default 8)
+  int stage_iterations = 40;  ///< L-BFGS iterations per eps stage, >= 1 (default 40)
+  int max_stages = 60;        ///< eps stages at most, >= 1 (default 60)
   /// Stop when neither the smallest det J has grown nor the inverted count fallen for this
   /// many stages, >= 1 (default 15).
   int stall_stages = 15;
@@ -81,8 +81,8 @@ struct UntangleTet {
 struct UntangleAnchor {
   int point = 0;
   Vec3 target = Vec3::Zero();
-  double weight = 0.0;  ///< energy per squared length unit, >= 0
-  double radius = 0.0;  ///< free ball round the target, >= 0 (default 0: a zero-length spring)
+  double weight = 0.0;         ///< energy per squared length unit, >= 0
+  double radius = 0.0;         ///< free ball round the target, >= 0 (default 0: a zero-length spring)
   Vec3 normal = Vec3::Zero();  ///< unit outward normal of a half-space pin (default zero: not one)
   /// With a normal: only the side outside counts (true: a half-space) or both (false: the point is
   /// held on the plane through the target and may slide along it) (default true).
@@ -109,29 +109,29 @@ struct UntangleContainment {
   };
   SignedDistanceFunction signed_distance;  ///< empty: no containment
   std::vector<Point> points;
-  double growth = 4.0;       ///< factor of the scale per stage with a point outside, >= 1 (default 4)
-  double max_scale = 4096.0; ///< largest scale, >= 1 (default 4096 = 4^6)
+  double growth = 4.0;        ///< factor of the scale per stage with a point outside, >= 1 (default 4)
+  double max_scale = 4096.0;  ///< largest scale, >= 1 (default 4096 = 4^6)
   bool active() const { return signed_distance && !points.empty(); }
 };
 
 /// What untangle() did.
 struct UntangleReport {
-  long tets = 0;               ///< tetrahedra in the problem
-  long free_points = 0;        ///< points it may move
-  long counted = 0;            ///< of them, counted ones
-  long inverted_before = 0;    ///< counted tetrahedra with det J <= min_det before
-  long inverted_after = 0;     ///< and after
-  long uncounted_inverted_after = 0;  ///< tetrahedra not counted with det J <= 0 after
+  long tets = 0;                                     ///< tetrahedra in the problem
+  long free_points = 0;                              ///< points it may move
+  long counted = 0;                                  ///< of them, counted ones
+  long inverted_before = 0;                          ///< counted tetrahedra with det J <= min_det before
+  long inverted_after = 0;                           ///< and after
+  long uncounted_inverted_after = 0;                 ///< tetrahedra not counted with det J <= 0 after
   double min_det_before = 0.0, min_det_after = 0.0;  ///< smallest counted det J before and after
-  int stages = 0;              ///< eps stages run
-  int iterations = 0;          ///< L-BFGS iterations in all
-  int evaluations = 0;         ///< energy and gradient evaluations
-  double eps = 0.0;            ///< eps of the last stage
+  int stages = 0;                                    ///< eps stages run
+  int iterations = 0;                                ///< L-BFGS iterations in all
+  int evaluations = 0;                               ///< energy and gradient evaluations
+  double eps = 0.0;                                  ///< eps of the last stage
   double seconds = 0.0;
-  long outside_before = 0;     ///< containment points with d > 0 before (0 without containment)
-  long outside_after = 0;      ///< and after
+  long outside_before = 0;         ///< containment points with d > 0 before (0 without containment)
+  long outside_after = 0;          ///< and after
   double containment_scale = 1.0;  ///< the containment's last scale
-  int reverted = 0;            ///< 1 when the run returned an earlier, better state (keep_best)
+  int reverted = 0;                ///< 1 when the run returned an earlier, better state (keep_best)
   bool untangled() const { return inverted_after == 0; }
   nlohmann::json to_json() const;
 };
@@ -144,8 +144,7 @@ struct UntangleReport {
 /// vertex index out of range or a non-finite position.
 UntangleReport untangle(std::vector<Vec3>& positions, const std::vector<char>& fixed,
                         const std::vector<UntangleTet>& tets, const UntangleOptions& options = {},
-                        const std::vector<UntangleAnchor>& anchors = {},
-                        const UntangleContainment& containment = {});
+                        const std::vector<UntangleAnchor>& anchors = {}, const UntangleContainment& containment = {});
 
 /// det J of every tetrahedron at `positions` (its signed volume relative to its reference).
 std::vector<double> tet_jacobian_dets(const std::vector<Vec3>& positions, const std::vector<UntangleTet>& tets);

@@ -48,9 +48,15 @@ void LatticeUntangleOptions::validate() const {
 }
 
 nlohmann::json LatticeUntangleReport::to_json() const {
-  return {{"runs", runs},         {"inverted_before", inverted_before}, {"inverted_left", inverted_left},
-          {"budget_left", budget_left}, {"pinned", pinned},             {"kept", kept},
-          {"stops", stops},             {"iterations", iterations}, {"free_ring_tried", free_ring_tried}};
+  return {{"runs", runs},
+          {"inverted_before", inverted_before},
+          {"inverted_left", inverted_left},
+          {"budget_left", budget_left},
+          {"pinned", pinned},
+          {"kept", kept},
+          {"stops", stops},
+          {"iterations", iterations},
+          {"free_ring_tried", free_ring_tried}};
 }
 
 namespace {
@@ -63,7 +69,8 @@ std::vector<double> mean_spring_length(const springs::SpringSystem& system, Coun
   std::vector<double> sum(system.positions.size(), 0.0), count(system.positions.size(), 0.0);
   for (const springs::Spring& s : system.springs) {
     if (!counts(s)) continue;
-    const double l = (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
+    const double l =
+        (system.positions[static_cast<std::size_t>(s.a)] - system.positions[static_cast<std::size_t>(s.b)]).norm();
     sum[static_cast<std::size_t>(s.a)] += l;
     sum[static_cast<std::size_t>(s.b)] += l;
     count[static_cast<std::size_t>(s.a)] += 1.0;
@@ -77,7 +84,8 @@ std::vector<double> mean_spring_length(const springs::SpringSystem& system, Coun
 }  // namespace
 
 std::vector<double> lattice_local_spacing(const springs::SpringSystem& system) {
-  return mean_spring_length(system, [](const springs::Spring&) { return true; }, nullptr);
+  return mean_spring_length(
+      system, [](const springs::Spring&) { return true; }, nullptr);
 }
 
 std::vector<double> lattice_across_spacing(const springs::Lattice& lattice, const springs::SpringSystem& system) {
@@ -165,7 +173,8 @@ std::vector<UntangleTet> lattice_cell_tets(const springs::Lattice& lattice, cons
             d.col(col) = x[static_cast<std::size_t>(corner_index[local[static_cast<std::size_t>(col) + 1]])] -
                          x[static_cast<std::size_t>(corner_index[local[0]])];
           }
-          for (int v = 0; v < 4; ++v) tet.v[static_cast<std::size_t>(v)] = corner_index[local[static_cast<std::size_t>(v)]];
+          for (int v = 0; v < 4; ++v)
+            tet.v[static_cast<std::size_t>(v)] = corner_index[local[static_cast<std::size_t>(v)]];
           tet.reference_inverse = s.inverse();
           if (counted) total += d.determinant();
           tets.push_back(tet);
@@ -185,7 +194,8 @@ std::vector<UntangleTet> lattice_cell_tets(const springs::Lattice& lattice, cons
   for (UntangleTet& tet : tets) {
     Eigen::Matrix3d d;
     for (int col = 0; col < 3; ++col)
-      d.col(col) = x[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])] - x[static_cast<std::size_t>(tet.v[0])];
+      d.col(col) =
+          x[static_cast<std::size_t>(tet.v[static_cast<std::size_t>(col) + 1])] - x[static_cast<std::size_t>(tet.v[0])];
     const Eigen::Matrix3d j = d * tet.reference_inverse;
     const double det = j.determinant();
     if (!(det > 0.2)) continue;
@@ -230,8 +240,8 @@ Vec3 nearest_area_point(const std::vector<Vec3>& area, const Vec3& p) {
 }  // namespace
 
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
-                                       const SurfaceQuery& query, double length,
-                                       const LatticeUntangleOptions& options, const Attachments* areas) {
+                                       const SurfaceQuery& query, double length, const LatticeUntangleOptions& options,
+                                       const Attachments* areas) {
   options.validate();
   LatticeUntangleReport report;
   // The area each end layer belongs to (k = 0: origin, k = nz - 1: insertion); empty: the ends
@@ -246,7 +256,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     return q / (lattice.nx * lattice.ny) == 0 ? origin_area : insertion_area;
   };
   const double area_limit = options.end_area_margin * length;  // farthest an end may lie from its area
-  const double area_ball = 0.8 * area_limit;                     // where its soft pin starts to pull
+  const double area_ball = 0.8 * area_limit;                   // where its soft pin starts to pull
   const std::vector<UntangleTet> tets = lattice_cell_tets(lattice, system.positions);
   // The local spacing the depths are measured in (across_spacing); the weights stay per squared
   // lattice_local_spacing().
@@ -325,9 +335,9 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   int budget = options.iterations;
   auto attempt = [&](bool free_ends, bool free_ring, bool contain) {
     std::vector<UntangleAnchor> anchors;
-    std::unordered_map<int, std::size_t> anchor_of;  // lattice point -> its containment anchor
-    std::unordered_map<int, std::size_t> end_anchor;  // fibre end -> its anchor (cast place or area ball)
-    std::unordered_map<int, Vec3> cast_place;         // fibre end -> where the cast put it
+    std::unordered_map<int, std::size_t> anchor_of;    // lattice point -> its containment anchor
+    std::unordered_map<int, std::size_t> end_anchor;   // fibre end -> its anchor (cast place or area ball)
+    std::unordered_map<int, Vec3> cast_place;          // fibre end -> where the cast put it
     std::unordered_map<int, std::size_t> ring_anchor;  // freed surface-ring point -> its anchor
     if (free_ends) {
       const std::vector<double> spacing = lattice_local_spacing(system);
@@ -426,12 +436,13 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
               candidates.push_back(q);
           }
       std::vector<char> near(candidates.size(), 0);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t c = r.begin(); c < r.end(); ++c) {
-          const std::size_t q = static_cast<std::size_t>(candidates[c]);
-          near[c] = query.closest_point(system.positions[q]).distance < options.containment_band * sp[q] ? 1 : 0;
-        }
-      });
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, candidates.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t c = r.begin(); c < r.end(); ++c) {
+              const std::size_t q = static_cast<std::size_t>(candidates[c]);
+              near[c] = query.closest_point(system.positions[q]).distance < options.containment_band * sp[q] ? 1 : 0;
+            }
+          });
       std::unordered_set<int> out(outside.begin(), outside.end());
       containment.points.clear();
       for (std::size_t c = 0; c < candidates.size(); ++c) {
@@ -445,8 +456,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     outside.clear();
     renew_containment();
     long best_round = inverted_count();  // fewest folded tetrahedra after a round of this attempt
-    long best_outside = -1;  // fewest points outside after a round of this attempt (-1: none yet)
-    int outside_stalled = 0;  // rounds in a row since the last that left fewer outside
+    long best_outside = -1;              // fewest points outside after a round of this attempt (-1: none yet)
+    int outside_stalled = 0;             // rounds in a row since the last that left fewer outside
     for (int round = 0;; ++round) {
       const std::size_t runs_before = runs.size();
       long previous_free = -1;  // free points of the previous run of this round
@@ -514,7 +525,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       } else {
         ++outside_stalled;
       }
-      std::string stop = outside.empty()                  ? "contained"
+      std::string stop = outside.empty()                   ? "contained"
                          : round == options.contact_rounds ? "rounds"
                          : budget <= 0                     ? "budget"
                                                            : "";
@@ -670,7 +681,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       const bool other = !options.containment_energy;
       const std::string tag = other ? "_contained" : "_uncontained";
       run_from(settled, true, true, other, "free_ring" + tag);
-      if (inverted_left > 0) run_from(free_result, false, false, everywhere && other, "free_ring" + tag + "_then_held_ends");
+      if (inverted_left > 0)
+        run_from(free_result, false, false, everywhere && other, "free_ring" + tag + "_then_held_ends");
     }
   }
   system.positions = best;

@@ -42,7 +42,7 @@ namespace fascicle {
 
 /// Options of untangle_lattice().
 struct LatticeUntangleOptions {
-  UntangleOptions solver;        ///< the barrier solver (defaults: fibres/untangle.h)
+  UntangleOptions solver;  ///< the barrier solver (defaults: fibres/untangle.h)
   /// L-BFGS iterations per attempt, all its rounds together, >= 0 (default 8000: a lattice that
   /// cannot be unfolded costs seconds; a count, not a time, so the result is machine-independent).
   int iterations = 8000;
@@ -58,7 +58,7 @@ struct LatticeUntangleOptions {
   /// Depth of a free ring point's plane under the surface, local spacings, [0, 1) (default 0.1:
   /// shallower pushes interior points out, deeper raises the coverage p95 of bent muscles).
   double ring_depth = 0.1;
-  double ring_weight = 120.0;    ///< free ring point's plane pin, per squared spacing, > 0 (default 120)
+  double ring_weight = 120.0;  ///< free ring point's plane pin, per squared spacing, > 0 (default 120)
   /// With areas: how far a free fibre end may lie from its area, share of the muscle length, [0, 1),
   /// 0 = end_shift (default 0.015: under the check's 0.02; next to a hooked end, end_shift is too tight).
   double end_area_margin = 0.015;
@@ -81,7 +81,7 @@ struct LatticeUntangleOptions {
   /// Rounds of "fix the points still outside just inside, untangle again" at the end, >= 0 (default
   /// 3; the last round's pins stay even if they fold a cell, which the report counts).
   int pin_rounds = 3;
-  double contact_depth = 0.3;    ///< contact target depth, local spacings, (0, 1) (default 0.3)
+  double contact_depth = 0.3;  ///< contact target depth, local spacings, (0, 1) (default 0.3)
   /// Free-ring attempts: containment also in the untangling's energy (UntangleContainment,
   /// fibres/untangle.h) (default false: it unfolds some muscles but folds others that pass without it).
   bool containment_energy = false;
@@ -107,11 +107,12 @@ struct LatticeUntangleReport {
   /// One entry per untangle() run (its report, radius, round...), and after each attempt one with
   /// its name (`attempt`) and the folded tetrahedra left after its pins (`finished`).
   nlohmann::json runs = nlohmann::json::array();
-  long inverted_before = 0;   ///< counted folded tetrahedra of the settled lattice
-  long inverted_left = 0;     ///< and at the end
-  int budget_left = 0;        ///< iterations left to the last attempt
-  long pinned = 0;            ///< points fixed just inside at the end of the kept attempt
-  std::string kept;           ///< the attempt kept: held_ends, free_ends, free_then_held_ends, free_ring or free_ring_then_held_ends
+  long inverted_before = 0;  ///< counted folded tetrahedra of the settled lattice
+  long inverted_left = 0;    ///< and at the end
+  int budget_left = 0;       ///< iterations left to the last attempt
+  long pinned = 0;           ///< points fixed just inside at the end of the kept attempt
+  std::string
+      kept;  ///< the attempt kept: held_ends, free_ends, free_then_held_ends, free_ring or free_ring_then_held_ends
   /// Whether the attempts with the surface ring free ran (the attempts with it held left folds).
   bool free_ring_tried = false;
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
@@ -119,7 +120,7 @@ struct LatticeUntangleReport {
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells, nor, with
   /// fold_stall_needs_outside_stall, leave fewer points outside).
   nlohmann::json stops = nlohmann::json::object();
-  long iterations = 0;        ///< L-BFGS iterations of all runs
+  long iterations = 0;  ///< L-BFGS iterations of all runs
   nlohmann::json to_json() const;
 };
 

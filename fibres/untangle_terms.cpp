@@ -165,8 +165,8 @@ void untangle_third_bits_simd(int lanes, const double* c, std::uint64_t magic, s
 
 bool untangle_terms_avx2_supported() { return false; }
 bool untangle_terms_avx512_supported() { return false; }
-void untangle_terms_simd(int, const double*, const int* const[4], const double* const[9], const double*,
-                         const double*, double, double, double*, double* const*) {}
+void untangle_terms_simd(int, const double*, const int* const[4], const double* const[9], const double*, const double*,
+                         double, double, double*, double* const*) {}
 void untangle_third_bits_simd(int, const double*, std::uint64_t, std::uint64_t*) {}
 
 #endif
@@ -175,6 +175,5 @@ int untangle_simd_lanes() {
   if (!g_untangle_simd || !untangle_terms_avx2_supported()) return 0;
   return g_untangle_avx512 && untangle_terms_avx512_supported() ? 8 : 4;
 }
-
 
 }  // namespace fascicle::detail

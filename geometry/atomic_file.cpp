@@ -24,8 +24,8 @@ namespace {
 std::string temporary_name(const fs::path& target) {
   static std::atomic<unsigned> counter{0};
   std::random_device rd;
-  const std::string name = "." + target.filename().string() + ".tmp." + std::to_string(::getpid()) +
-                           "." + std::to_string(counter++) + "." + std::to_string(rd() % 100000);
+  const std::string name = "." + target.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
+                           std::to_string(counter++) + "." + std::to_string(rd() % 100000);
   return (target.parent_path() / name).string();
 }
 
@@ -39,8 +39,7 @@ void sync_file(const std::string& path) {
 
 }  // namespace
 
-void write_file_atomically(const std::string& path, const std::function<void(std::ostream&)>& write,
-                           bool binary) {
+void write_file_atomically(const std::string& path, const std::function<void(std::ostream&)>& write, bool binary) {
   const fs::path target(path);
   if (target.filename().empty()) throw IoError(path + ": output path names no file");
   std::error_code ec;
@@ -73,7 +72,8 @@ void check_output_path(const std::string& path) {
   if (fs::is_directory(target, ec)) throw IoError(path + ": output path is a directory");
   const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
   if (!fs::is_directory(dir, ec)) throw IoError(path + ": output folder " + dir.string() + " does not exist");
-  if (::access(dir.c_str(), W_OK | X_OK) != 0) throw IoError(path + ": output folder " + dir.string() + " is not writable");
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw IoError(path + ": output folder " + dir.string() + " is not writable");
 }
 
 StagedOutputs::~StagedOutputs() {
@@ -85,9 +85,10 @@ void StagedOutputs::stage(const std::string& path, const std::function<void(cons
   static std::atomic<unsigned> counter{0};
   const fs::path target(path);
   const std::string ext = target.extension().string();
-  const std::string temporary = (target.parent_path() / ("." + target.filename().string() + ".tmp." +
-                                                         std::to_string(::getpid()) + "." + std::to_string(counter++) + ext))
-                                    .string();
+  const std::string temporary =
+      (target.parent_path() / ("." + target.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
+                               std::to_string(counter++) + ext))
+          .string();
   staged_.emplace_back(temporary, path);
   write(temporary);
 }

@@ -57,8 +57,7 @@ class InputError : public Error {
 /// A mesh whose topology a stage cannot accept, or a repair that cannot reach genus 0.
 class TopologyError : public Error {
  public:
-  explicit TopologyError(const std::string& message, ErrorCode code = ErrorCode::topology)
-      : Error(code, message) {}
+  explicit TopologyError(const std::string& message, ErrorCode code = ErrorCode::topology) : Error(code, message) {}
 };
 
 /// An iterative solve that diverged; the message names the likely cause and the option to change.
@@ -80,12 +79,11 @@ class OptionError : public Error {
 };
 
 /// Checked assertion for internal invariants: throws Error(internal) with file and line.
-#define FASCICLE_CHECK(cond, msg)                                                          \
-  do {                                                                                     \
-    if (!(cond))                                                                           \
-      throw ::fascicle::Error(::fascicle::ErrorCode::internal,                             \
-                              std::string("internal check failed: ") + (msg) + " (" +     \
-                                  __FILE__ + ":" + std::to_string(__LINE__) + ")");        \
+#define FASCICLE_CHECK(cond, msg)                                                                                      \
+  do {                                                                                                                 \
+    if (!(cond))                                                                                                       \
+      throw ::fascicle::Error(::fascicle::ErrorCode::internal, std::string("internal check failed: ") + (msg) + " (" + \
+                                                                   __FILE__ + ":" + std::to_string(__LINE__) + ")");   \
   } while (0)
 
 }  // namespace fascicle

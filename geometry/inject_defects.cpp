@@ -402,8 +402,9 @@ Outcome make_flipped_patch(PolygonSoup& soup, Rng& rng, const DefectParams& para
     const Topology topo(soup);
     const int seed = static_cast<int>(below(rng, soup.polygons.size()));
     const std::vector<int> patch = grow_patch(soup, topo, seed, patch_size(soup, params));
-    for (int f : patch) std::reverse(soup.polygons[static_cast<std::size_t>(f)].begin(),
-                                     soup.polygons[static_cast<std::size_t>(f)].end());
+    for (int f : patch)
+      std::reverse(soup.polygons[static_cast<std::size_t>(f)].begin(),
+                   soup.polygons[static_cast<std::size_t>(f)].end());
     sizes += (sizes.empty() ? "" : ", ") + std::to_string(patch.size());
   }
   return {params.count, std::to_string(params.count) + " patch(es) of " + sizes + " faces reversed"};
@@ -720,8 +721,8 @@ Outcome make_duplicates(PolygonSoup& soup, Rng& rng, const DefectParams& params,
   std::vector<int> referenced;
   for (std::size_t v = 0; v < soup.points.size(); ++v)
     if (!topo.vertex_faces[v].empty()) referenced.push_back(static_cast<int>(v));
-  if (referenced.empty()) no_place(near ? DefectKind::near_duplicate_vertices : DefectKind::duplicate_vertices,
-                                   "no referenced vertex");
+  if (referenced.empty())
+    no_place(near ? DefectKind::near_duplicate_vertices : DefectKind::duplicate_vertices, "no referenced vertex");
   const int count = share_count(params.fraction, referenced.size());
   const double distance = near ? params.near_distance * scale_of(soup) : 0.0;
   const std::vector<int> chosen = choose_distinct(rng, static_cast<int>(referenced.size()), count);
@@ -743,8 +744,8 @@ Outcome make_duplicates(PolygonSoup& soup, Rng& rng, const DefectParams& params,
     rereferenced += static_cast<int>(moved.size());
   }
   std::string note = std::to_string(chosen.size()) + " vertices copied" +
-                     (near ? " " + fmt_double(distance) + " away" : " exactly") + ", " +
-                     std::to_string(rereferenced) + " face references moved to the copies";
+                     (near ? " " + fmt_double(distance) + " away" : " exactly") + ", " + std::to_string(rereferenced) +
+                     " face references moved to the copies";
   return {static_cast<int>(chosen.size()), note};
 }
 
@@ -762,10 +763,22 @@ Outcome make_nan(PolygonSoup& soup, Rng& rng, const DefectParams& params) {
   return {params.count, std::to_string(params.count) + " coordinate(s) set to NaN"};
 }
 
-const char* const kNames[] = {"holes",          "flipped_patch",   "pinched_vertex", "non_manifold_edge",
-                              "handle",         "self_intersection_fold", "stray_component", "inner_shell",
-                              "outer_shell",    "slivers",         "zero_area_faces", "duplicate_vertices",
-                              "near_duplicate_vertices", "scale",  "offset",         "nan_coordinates"};
+const char* const kNames[] = {"holes",
+                              "flipped_patch",
+                              "pinched_vertex",
+                              "non_manifold_edge",
+                              "handle",
+                              "self_intersection_fold",
+                              "stray_component",
+                              "inner_shell",
+                              "outer_shell",
+                              "slivers",
+                              "zero_area_faces",
+                              "duplicate_vertices",
+                              "near_duplicate_vertices",
+                              "scale",
+                              "offset",
+                              "nan_coordinates"};
 constexpr int kKindCount = static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
 static_assert(kKindCount == static_cast<int>(DefectKind::nan_coordinates) + 1, "one name per kind");
 
@@ -837,8 +850,8 @@ PolygonSoup inject(const PolygonSoup& mesh, DefectKind kind, std::uint64_t seed,
       break;
     case DefectKind::offset:
       for (Vec3& p : soup.points) p += params.offset;
-      outcome = {1, "translated by (" + fmt_double(params.offset.x()) + ", " + fmt_double(params.offset.y()) +
-                        ", " + fmt_double(params.offset.z()) + ")"};
+      outcome = {1, "translated by (" + fmt_double(params.offset.x()) + ", " + fmt_double(params.offset.y()) + ", " +
+                        fmt_double(params.offset.z()) + ")"};
       break;
     case DefectKind::nan_coordinates: outcome = make_nan(soup, rng, params); break;
   }
@@ -881,8 +894,7 @@ TriangleMesh soup_triangles(const PolygonSoup& soup) {
   for (std::size_t f = 0; f < soup.polygons.size(); ++f) {
     const auto& p = soup.polygons[f];
     if (p.size() != 3)
-      throw TopologyError("polygon " + std::to_string(f) + " has " + std::to_string(p.size()) +
-                          " corners, not 3");
+      throw TopologyError("polygon " + std::to_string(f) + " has " + std::to_string(p.size()) + " corners, not 3");
     mesh.triangles.push_back({p[0], p[1], p[2]});
   }
   return mesh;

@@ -53,11 +53,11 @@ std::vector<DefectKind> all_defect_kinds();
 
 /// How much of a defect to make. Fields a kind does not use are ignored.
 struct DefectParams {
-  int count = 1;                ///< instances: holes, patches, pinches, fins, handles, folds, shells, NaN coordinates
-  int patch_faces = 12;         ///< faces per patch for holes and flipped_patch (capped at a quarter of the faces)
-  double fraction = 0.02;       ///< share of vertices (duplicates) or triangles (slivers, zero-area) affected; at least one
-  double near_distance = 1e-7;  ///< near-duplicate displacement as a fraction of the bounding-box diagonal
-  double scale_factor = 1e-3;   ///< factor for `scale` (1e-3: millimetres read as metres)
+  int count = 1;           ///< instances: holes, patches, pinches, fins, handles, folds, shells, NaN coordinates
+  int patch_faces = 12;    ///< faces per patch for holes and flipped_patch (capped at a quarter of the faces)
+  double fraction = 0.02;  ///< share of vertices (duplicates) or triangles (slivers, zero-area) affected; at least one
+  double near_distance = 1e-7;        ///< near-duplicate displacement as a fraction of the bounding-box diagonal
+  double scale_factor = 1e-3;         ///< factor for `scale` (1e-3: millimetres read as metres)
   Vec3 offset = Vec3::Constant(1e7);  ///< translation for `offset`, file units
 
   /// Throws OptionError naming the field: count in [1, 1e6], patch_faces in [1, 1e7],
@@ -87,18 +87,17 @@ struct DefectLog {
 /// Throws OptionError from params.validate(), TopologyError when the mesh has no place for the
 /// defect (no faces, too few faces, no vertex with a disc-shaped star, no interior for an inner
 /// shell).
-PolygonSoup inject(const PolygonSoup& mesh, DefectKind kind, std::uint64_t seed,
-                   const DefectParams& params = {}, DefectLog* log = nullptr);
+PolygonSoup inject(const PolygonSoup& mesh, DefectKind kind, std::uint64_t seed, const DefectParams& params = {},
+                   DefectLog* log = nullptr);
 
 /// Same as above for a triangle mesh (converted with to_soup first).
-PolygonSoup inject(const TriangleMesh& mesh, DefectKind kind, std::uint64_t seed,
-                   const DefectParams& params = {}, DefectLog* log = nullptr);
+PolygonSoup inject(const TriangleMesh& mesh, DefectKind kind, std::uint64_t seed, const DefectParams& params = {},
+                   DefectLog* log = nullptr);
 
 /// Injects `count` distinct kinds drawn by `seed` from all kinds except nan_coordinates, applied in
 /// enum order with default params, each from derive_seed(seed, 1 + its position). count in [0, 15];
 /// throws OptionError otherwise, and whatever inject throws.
-PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t seed, int count,
-                                      DefectLog* log = nullptr);
+PolygonSoup inject_random_combination(const PolygonSoup& mesh, std::uint64_t seed, int count, DefectLog* log = nullptr);
 
 /// Same as above for a triangle mesh (converted with to_soup first).
 PolygonSoup inject_random_combination(const TriangleMesh& mesh, std::uint64_t seed, int count,

@@ -37,9 +37,9 @@ FileBytes::FileBytes(const std::string& path, const ReadOptions& options) {
   const auto size = static_cast<std::uint64_t>(info.st_size);
   if (size > options.max_file_bytes) {
     ::close(fd);
-    throw InputError(ErrorCode::too_large, path + ": file has " + std::to_string(size) +
-                                               " bytes, more than the limit max_file_bytes = " +
-                                               std::to_string(options.max_file_bytes));
+    throw InputError(ErrorCode::too_large,
+                     path + ": file has " + std::to_string(size) +
+                         " bytes, more than the limit max_file_bytes = " + std::to_string(options.max_file_bytes));
   }
   if (size == 0) {
     ::close(fd);
@@ -48,7 +48,7 @@ FileBytes::FileBytes(const std::string& path, const ReadOptions& options) {
   if (S_ISREG(info.st_mode)) {
     void* map = ::mmap(nullptr, static_cast<std::size_t>(size), PROT_READ, MAP_PRIVATE, fd, 0);
     if (map != MAP_FAILED) {
-      ::close(fd);  // the mapping stays valid
+      ::close(fd);                                                      // the mapping stays valid
       ::madvise(map, static_cast<std::size_t>(size), MADV_SEQUENTIAL);  // read ahead, drop behind
       mapping_ = map;
       data_ = static_cast<const char*>(map);
@@ -65,8 +65,8 @@ FileBytes::FileBytes(const std::string& path, const ReadOptions& options) {
     if (n < 0) {
       const int err = errno;
       ::close(fd);
-      throw InputError(ErrorCode::file_missing, path + ": byte " + std::to_string(done) +
-                                                    ": read failed: " + std::strerror(err));
+      throw InputError(ErrorCode::file_missing,
+                       path + ": byte " + std::to_string(done) + ": read failed: " + std::strerror(err));
     }
     if (n == 0) break;  // the file shrank while reading
     done += static_cast<std::size_t>(n);
@@ -152,8 +152,8 @@ PolygonSoup read_polygon_soup(const std::string& path, const ReadOptions& option
     }
   }
   if (soup.polygons.empty())
-    throw InputError(ErrorCode::file_empty, path + ": holds " + std::to_string(soup.points.size()) +
-                                                " points but no faces");
+    throw InputError(ErrorCode::file_empty,
+                     path + ": holds " + std::to_string(soup.points.size()) + " points but no faces");
   return soup;
 }
 

@@ -98,16 +98,14 @@ TriangleMesh make_cube(double size, int per_edge) {
 
 TriangleMesh make_icosphere(int subdivisions, double radius) {
   require(std::isfinite(radius) && radius > 0, "icosphere radius", radius, "must be positive");
-  require(subdivisions >= 0 && subdivisions <= 8, "icosphere subdivisions", subdivisions,
-          "must be in [0, 8]");
+  require(subdivisions >= 0 && subdivisions <= 8, "icosphere subdivisions", subdivisions, "must be in [0, 8]");
   const double g = (1.0 + std::sqrt(5.0)) / 2.0;
   TriangleMesh m;
-  m.positions = {Vec3(-1, g, 0), Vec3(1, g, 0), Vec3(-1, -g, 0), Vec3(1, -g, 0),
-                 Vec3(0, -1, g), Vec3(0, 1, g), Vec3(0, -1, -g), Vec3(0, 1, -g),
-                 Vec3(g, 0, -1), Vec3(g, 0, 1), Vec3(-g, 0, -1), Vec3(-g, 0, 1)};
-  m.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-                 {3, 8, 9},   {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  m.positions = {Vec3(-1, g, 0),  Vec3(1, g, 0),  Vec3(-1, -g, 0), Vec3(1, -g, 0), Vec3(0, -1, g),  Vec3(0, 1, g),
+                 Vec3(0, -1, -g), Vec3(0, 1, -g), Vec3(g, 0, -1),  Vec3(g, 0, 1),  Vec3(-g, 0, -1), Vec3(-g, 0, 1)};
+  m.triangles = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                 {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (Vec3& p : m.positions) p.normalize();
   for (int level = 0; level < subdivisions; ++level) {
     std::map<std::pair<int, int>, int> midpoint;
@@ -116,7 +114,8 @@ TriangleMesh make_icosphere(int subdivisions, double radius) {
       auto it = midpoint.find(key);
       if (it != midpoint.end()) return it->second;
       const int id = static_cast<int>(m.positions.size());
-      m.positions.push_back((m.positions[static_cast<std::size_t>(a)] + m.positions[static_cast<std::size_t>(b)]).normalized());
+      m.positions.push_back(
+          (m.positions[static_cast<std::size_t>(a)] + m.positions[static_cast<std::size_t>(b)]).normalized());
       midpoint.emplace(key, id);
       return id;
     };
@@ -166,8 +165,7 @@ TriangleMesh make_closed_tube(const std::vector<std::vector<Vec3>>& rings, const
 
 TriangleMesh make_capsule(double length, double radius, int segments) {
   require(std::isfinite(radius) && radius > 0, "capsule radius", radius, "must be positive");
-  require(std::isfinite(length) && length >= 2 * radius, "capsule length", length,
-          "must be at least twice the radius");
+  require(std::isfinite(length) && length >= 2 * radius, "capsule length", length, "must be at least twice the radius");
   require(segments >= 3, "capsule segments", segments, "must be at least 3");
   const int cap_rings = std::max(2, segments / 4);
   const double cylinder = length - 2 * radius;
@@ -195,8 +193,7 @@ TriangleMesh make_capsule(double length, double radius, int segments) {
 }
 
 TriangleMesh make_bent_tube(double bend_radius, double tube_radius, double angle, int segments, int rings) {
-  require(std::isfinite(tube_radius) && tube_radius > 0, "bent tube tube_radius", tube_radius,
-          "must be positive");
+  require(std::isfinite(tube_radius) && tube_radius > 0, "bent tube tube_radius", tube_radius, "must be positive");
   require(std::isfinite(bend_radius) && bend_radius > tube_radius, "bent tube bend_radius", bend_radius,
           "must exceed tube_radius");
   require(std::isfinite(angle) && angle > 0 && angle < 2 * kPi, "bent tube angle", angle,
@@ -217,13 +214,11 @@ TriangleMesh make_bent_tube(double bend_radius, double tube_radius, double angle
     const Vec3 radial(std::cos(a), std::sin(a), 0);
     all.push_back(ring(bend_radius * radial, radial, z, tube_radius, segments));
   }
-  return make_closed_tube(all, Vec3(bend_radius, 0, 0),
-                          bend_radius * Vec3(std::cos(angle), std::sin(angle), 0));
+  return make_closed_tube(all, Vec3(bend_radius, 0, 0), bend_radius * Vec3(std::cos(angle), std::sin(angle), 0));
 }
 
 TriangleMesh make_torus(double major_radius, double minor_radius, int major_segments, int minor_segments) {
-  require(std::isfinite(minor_radius) && minor_radius > 0, "torus minor_radius", minor_radius,
-          "must be positive");
+  require(std::isfinite(minor_radius) && minor_radius > 0, "torus minor_radius", minor_radius, "must be positive");
   require(std::isfinite(major_radius) && major_radius > minor_radius, "torus major_radius", major_radius,
           "must exceed minor_radius");
   require(major_segments >= 3 && major_segments <= 100000, "torus major_segments", major_segments,
@@ -252,7 +247,7 @@ TriangleMesh make_torus(double major_radius, double minor_radius, int major_segm
 PolygonSoup make_two_tetrahedra_sharing_vertex() {
   const TriangleMesh tet = make_tetrahedron(1.0);
   PolygonSoup soup;
-  soup.points = tet.positions;  // 0..3
+  soup.points = tet.positions;                                                                      // 0..3
   for (int k = 1; k <= 3; ++k) soup.points.push_back(-tet.positions[static_cast<std::size_t>(k)]);  // 4..6
   for (const Triangle& t : tet.triangles) soup.polygons.push_back({t[0], t[1], t[2]});
   // Mirroring through the origin reverses orientation, so each mirrored triangle is reversed.

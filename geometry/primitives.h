@@ -44,15 +44,13 @@ TriangleMesh make_capsule(double length, double radius, int segments = 24);
 /// arc (0: about one ring edge length apart, at least 2). Volume tends to pi r^2 R angle (Pappus).
 /// Throws OptionError unless 0 < tube_radius < bend_radius, 0 < angle < 2 pi, segments >= 3,
 /// rings >= 0 (and not above 1e6).
-TriangleMesh make_bent_tube(double bend_radius, double tube_radius, double angle, int segments = 24,
-                            int rings = 0);
+TriangleMesh make_bent_tube(double bend_radius, double tube_radius, double angle, int segments = 24, int rings = 0);
 
 /// Torus around the z axis: centre circle radius `major_radius`, tube radius `minor_radius`,
 /// `major_segments` x `minor_segments` quads split in two. Genus 1 (Euler characteristic 0), for
 /// negative tests of stages that need genus 0. Volume tends to 2 pi^2 R r^2.
 /// Throws OptionError unless 0 < minor_radius < major_radius and both segment counts >= 3.
-TriangleMesh make_torus(double major_radius, double minor_radius, int major_segments = 48,
-                        int minor_segments = 24);
+TriangleMesh make_torus(double major_radius, double minor_radius, int major_segments = 48, int minor_segments = 24);
 
 /// Two unit corner tetrahedra that touch at the origin only (the second is the first mirrored
 /// through the origin): 7 points, 8 triangles, each tetrahedron outward. Vertex 0 is a

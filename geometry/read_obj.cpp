@@ -42,8 +42,7 @@ ObjData read_obj_data(const std::string& path, std::string_view data, const Read
     const std::string_view keyword = in.token_in_line();
     any_statement = true;
     if (keyword == "v") {
-      if (obj.points.size() >= limit)
-        in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " vertices");
+      if (obj.points.size() >= limit) in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " vertices");
       const double x = in.number("x coordinate", true);
       const double y = in.number("y coordinate", true);
       const double z = in.number("z coordinate", true);

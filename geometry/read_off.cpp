@@ -29,7 +29,8 @@ PolygonSoup read_off(const std::string& path, std::string_view data, const ReadO
   if (!is_digit_start(first)) {
     const std::size_t at = first.find("OFF");
     if (at == std::string_view::npos)
-      in.fail(ErrorCode::unknown_format, "not an OFF file: expected 'OFF', found '" + ParseCursor::shorten(first) + "'");
+      in.fail(ErrorCode::unknown_format,
+              "not an OFF file: expected 'OFF', found '" + ParseCursor::shorten(first) + "'");
     const std::string_view prefix = first.substr(0, at);
     for (char c : prefix) {
       if (c == '4' || c == 'n')
@@ -71,8 +72,8 @@ PolygonSoup read_off(const std::string& path, std::string_view data, const ReadO
   for (std::uint64_t i = 0; i < vertex_count; ++i) {
     in.skip_space_and_comments();
     if (in.at_end())
-      in.fail(ErrorCode::truncated, "file ends after " + std::to_string(i) + " of " +
-                                        std::to_string(vertex_count) + " vertices");
+      in.fail(ErrorCode::truncated,
+              "file ends after " + std::to_string(i) + " of " + std::to_string(vertex_count) + " vertices");
     const double x = in.number("x coordinate", true);
     const double y = in.number("y coordinate", true);
     const double z = in.number("z coordinate", true);
@@ -84,8 +85,8 @@ PolygonSoup read_off(const std::string& path, std::string_view data, const ReadO
   for (std::uint64_t f = 0; f < face_count; ++f) {
     in.skip_space_and_comments();
     if (in.at_end())
-      in.fail(ErrorCode::truncated, "file ends after " + std::to_string(f) + " of " +
-                                        std::to_string(face_count) + " faces");
+      in.fail(ErrorCode::truncated,
+              "file ends after " + std::to_string(f) + " of " + std::to_string(face_count) + " faces");
     const std::uint64_t n = in.count("face vertex count", true);
     check_declared_count(in, n, 2, in.size(), "face vertices", options);
     std::vector<int> face(static_cast<std::size_t>(n));

@@ -43,7 +43,8 @@ enum class Encoding { ascii, little, big };
 /// Reads property values from the body, ASCII tokens or binary scalars.
 class BodyReader {
  public:
-  BodyReader(ParseCursor& in, Encoding encoding) : in_(in), binary_(encoding != Encoding::ascii), big_(encoding == Encoding::big) {}
+  BodyReader(ParseCursor& in, Encoding encoding)
+      : in_(in), binary_(encoding != Encoding::ascii), big_(encoding == Encoding::big) {}
 
   bool binary() const { return binary_; }
 
@@ -73,7 +74,8 @@ class BodyReader {
     if (allow_restart && value == -1) return -1;
     if (value < 0 || static_cast<std::uint64_t>(value) >= point_count)
       fail_here(at, in_.line(), ErrorCode::index_out_of_range,
-                std::string(what) + " " + std::to_string(value) + " is out of range (" + std::to_string(point_count) + " points)");
+                std::string(what) + " " + std::to_string(value) + " is out of range (" + std::to_string(point_count) +
+                    " points)");
     return static_cast<int>(value);
   }
 
@@ -81,13 +83,15 @@ class BodyReader {
     const std::size_t at = in_.pos();
     const std::int64_t n = integer(p.count_type, what);
     const std::size_t line = in_.line();  // ASCII: the line of the token just read
-    if (n < 0) fail_here(at, line, ErrorCode::malformed, std::string(what) + " is negative (" + std::to_string(n) + ")");
+    if (n < 0)
+      fail_here(at, line, ErrorCode::malformed, std::string(what) + " is negative (" + std::to_string(n) + ")");
     const std::uint64_t item = binary_ ? scalar_size(p.type) : 2;  // ASCII: a digit and a blank
     if (static_cast<std::uint64_t>(n) > in_.remaining() / item) {
       if (binary_)
-        in_.fail_at_byte(at, ErrorCode::truncated, std::string(what) + " " + std::to_string(n) +
-                                                       " runs past the end of the file");
-      fail_here(at, line, ErrorCode::truncated, std::string(what) + " " + std::to_string(n) + " runs past the end of the file");
+        in_.fail_at_byte(at, ErrorCode::truncated,
+                         std::string(what) + " " + std::to_string(n) + " runs past the end of the file");
+      fail_here(at, line, ErrorCode::truncated,
+                std::string(what) + " " + std::to_string(n) + " runs past the end of the file");
     }
     return static_cast<std::uint64_t>(n);
   }
@@ -162,10 +166,14 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
     }
     if (keyword == "format") {
       const std::string_view kind = in.token_in_line();
-      if (kind == "ascii") encoding = Encoding::ascii;
-      else if (kind == "binary_little_endian") encoding = Encoding::little;
-      else if (kind == "binary_big_endian") encoding = Encoding::big;
-      else in.fail(ErrorCode::malformed, "unknown PLY format '" + ParseCursor::shorten(kind) + "'");
+      if (kind == "ascii")
+        encoding = Encoding::ascii;
+      else if (kind == "binary_little_endian")
+        encoding = Encoding::little;
+      else if (kind == "binary_big_endian")
+        encoding = Encoding::big;
+      else
+        in.fail(ErrorCode::malformed, "unknown PLY format '" + ParseCursor::shorten(kind) + "'");
       in.token_in_line();  // version, always 1.0
     } else if (keyword == "element") {
       Element e;
@@ -196,7 +204,8 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
     } else {
       in.fail(ErrorCode::malformed, "unknown PLY header keyword '" + ParseCursor::shorten(keyword) + "'");
     }
-    if (!in.at_line_end()) in.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in.token_in_line()) + "'");
+    if (!in.at_line_end())
+      in.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in.token_in_line()) + "'");
     in.skip_to_next_line();
   }
   if (!ended) in.fail(ErrorCode::truncated, "file ends inside the PLY header (no 'end_header')");
@@ -211,8 +220,9 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
     for (const Property& p : e.properties)
       min_bytes += *encoding == Encoding::ascii ? 2 : (p.is_list ? scalar_size(p.count_type) : scalar_size(p.type));
     if (e.count > limit)
-      in.fail_at_line(e.line, ErrorCode::too_large, "element '" + e.name + "' declares " + std::to_string(e.count) +
-                                                        " items, more than the limit of " + std::to_string(limit));
+      in.fail_at_line(e.line, ErrorCode::too_large,
+                      "element '" + e.name + "' declares " + std::to_string(e.count) +
+                          " items, more than the limit of " + std::to_string(limit));
     if (min_bytes > 0 && e.count > body / min_bytes)
       in.fail_at_line(e.line, ErrorCode::too_large,
                       "element '" + e.name + "' declares " + std::to_string(e.count) + " items but the data has only " +
@@ -221,7 +231,8 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
   }
   if (vertex == nullptr) in.fail(ErrorCode::malformed, "PLY header declares no 'vertex' element");
   const int ix = property_index(*vertex, "x"), iy = property_index(*vertex, "y"), iz = property_index(*vertex, "z");
-  if (ix < 0 || iy < 0 || iz < 0) in.fail_at_line(vertex->line, ErrorCode::malformed, "vertex element lacks an x, y or z property");
+  if (ix < 0 || iy < 0 || iz < 0)
+    in.fail_at_line(vertex->line, ErrorCode::malformed, "vertex element lacks an x, y or z property");
   for (int i : {ix, iy, iz})
     if (vertex->properties[static_cast<std::size_t>(i)].is_list)
       in.fail_at_line(vertex->line, ErrorCode::malformed, "vertex coordinate is declared as a list");
@@ -256,7 +267,8 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
           if (static_cast<int>(i) == iz) offset[2] = o;
           o += scalar_size(e.properties[i].type);
         }
-        const Scalar types[3] = {e.properties[static_cast<std::size_t>(ix)].type, e.properties[static_cast<std::size_t>(iy)].type,
+        const Scalar types[3] = {e.properties[static_cast<std::size_t>(ix)].type,
+                                 e.properties[static_cast<std::size_t>(iy)].type,
                                  e.properties[static_cast<std::size_t>(iz)].type};
         const std::size_t base = in.pos();
         for (std::size_t v = 0; v < point_count; ++v) {
@@ -274,10 +286,14 @@ PolygonSoup read_ply(const std::string& path, std::string_view data, const ReadO
         for (std::size_t v = 0; v < point_count; ++v) {
           for (std::size_t i = 0; i < e.properties.size(); ++i) {
             const int k = static_cast<int>(i);
-            if (k == ix) soup.points[v][0] = reader.real(e.properties[i].type, "x coordinate");
-            else if (k == iy) soup.points[v][1] = reader.real(e.properties[i].type, "y coordinate");
-            else if (k == iz) soup.points[v][2] = reader.real(e.properties[i].type, "z coordinate");
-            else reader.skip(e.properties[i]);
+            if (k == ix)
+              soup.points[v][0] = reader.real(e.properties[i].type, "x coordinate");
+            else if (k == iy)
+              soup.points[v][1] = reader.real(e.properties[i].type, "y coordinate");
+            else if (k == iz)
+              soup.points[v][2] = reader.real(e.properties[i].type, "z coordinate");
+            else
+              reader.skip(e.properties[i]);
           }
         }
       }

@@ -28,8 +28,8 @@ std::vector<Vec3> detail::read_points(const std::string& path, std::string_view 
     const double y = in.number("y coordinate", true);
     const double z = in.number("z coordinate", true);
     if (!in.at_line_end())
-      in.fail(ErrorCode::malformed, "unexpected '" + detail::ParseCursor::shorten(in.token_in_line()) +
-                                        "' after the three coordinates");
+      in.fail(ErrorCode::malformed,
+              "unexpected '" + detail::ParseCursor::shorten(in.token_in_line()) + "' after the three coordinates");
     points.emplace_back(x, y, z);
     in.skip_to_next_line();
   }

@@ -126,12 +126,18 @@ class XmlScanner {
       const std::size_t semi = raw.find(';', i);
       if (semi == std::string_view::npos) fail(ErrorCode::malformed, "unterminated '&' entity in an attribute");
       const std::string_view entity = raw.substr(i + 1, semi - i - 1);
-      if (entity == "amp") out += '&';
-      else if (entity == "lt") out += '<';
-      else if (entity == "gt") out += '>';
-      else if (entity == "quot") out += '"';
-      else if (entity == "apos") out += '\'';
-      else fail(ErrorCode::malformed, "unknown entity '&" + detail::ParseCursor::shorten(entity) + ";'");
+      if (entity == "amp")
+        out += '&';
+      else if (entity == "lt")
+        out += '<';
+      else if (entity == "gt")
+        out += '>';
+      else if (entity == "quot")
+        out += '"';
+      else if (entity == "apos")
+        out += '\'';
+      else
+        fail(ErrorCode::malformed, "unknown entity '&" + detail::ParseCursor::shorten(entity) + ";'");
       i = semi;
     }
     return out;
@@ -253,7 +259,8 @@ class VtpReader {
     const std::string& text = it->second;
     const auto result = std::from_chars(text.data(), text.data() + text.size(), value);
     if (result.ec == std::errc::result_out_of_range)
-      fail_line(path_, tag.line, ErrorCode::too_large, std::string(key) + " " + detail::ParseCursor::shorten(text) + " is too large");
+      fail_line(path_, tag.line, ErrorCode::too_large,
+                std::string(key) + " " + detail::ParseCursor::shorten(text) + " is too large");
     if (text.empty() || result.ec != std::errc() || result.ptr != text.data() + text.size())
       fail_line(path_, tag.line, ErrorCode::malformed,
                 std::string(key) + " '" + detail::ParseCursor::shorten(text) + "' is not a non-negative integer");
@@ -300,8 +307,8 @@ class VtpReader {
     info.components = tag.attributes.count("NumberOfComponents") ? count_attribute(tag, "NumberOfComponents", true) : 1;
     const std::string cells = grid_ ? "Cells" : "Lines";
     const bool wanted = section == "Points" ||
-                        (section == cells && (info.name == "connectivity" || info.name == "offsets" ||
-                                              (grid_ && info.name == "types"))) ||
+                        (section == cells &&
+                         (info.name == "connectivity" || info.name == "offsets" || (grid_ && info.name == "types"))) ||
                         (section == "CellData" && info.components == 1);
     if (wanted && info.format != "ascii")
       fail_line(path_, tag.line, ErrorCode::unknown_format,
@@ -324,8 +331,9 @@ class VtpReader {
       if (integer) {
         std::int64_t v = 0;
         if (!detail::ParseCursor::parse_integer(t, v))
-          fail_line(path_, line, ErrorCode::malformed,
-                    "value '" + detail::ParseCursor::shorten(t) + "' of DataArray '" + info.name + "' is not an integer");
+          fail_line(
+              path_, line, ErrorCode::malformed,
+              "value '" + detail::ParseCursor::shorten(t) + "' of DataArray '" + info.name + "' is not an integer");
         integers.push_back(v);
       } else {
         double v = 0.0;
@@ -349,7 +357,8 @@ class VtpReader {
                   "Points DataArray holds " + std::to_string(reals.size()) + " values, NumberOfPoints = " +
                       std::to_string(n_points_) + " needs " + std::to_string(3 * n_points_));
       points_.resize(static_cast<std::size_t>(n_points_));
-      for (std::size_t i = 0; i < points_.size(); ++i) points_[i] = Vec3(reals[3 * i], reals[3 * i + 1], reals[3 * i + 2]);
+      for (std::size_t i = 0; i < points_.size(); ++i)
+        points_[i] = Vec3(reals[3 * i], reals[3 * i + 1], reals[3 * i + 2]);
       have_points_ = true;
     } else if (section == cells) {
       if (info.name == "types") {
@@ -360,8 +369,8 @@ class VtpReader {
                           "; a polyline file holds lines (3) and poly-lines (4) only");
         if (integers.size() != n_lines_)
           fail_line(path_, info.line, ErrorCode::malformed,
-                    "types array holds " + std::to_string(integers.size()) + " values for NumberOfCells = " +
-                        std::to_string(n_lines_));
+                    "types array holds " + std::to_string(integers.size()) +
+                        " values for NumberOfCells = " + std::to_string(n_lines_));
         have_types_ = true;
         return;
       }
@@ -385,8 +394,8 @@ class VtpReader {
     std::optional<XmlTag> end = xml_.next_tag();
     if (!end) xml_.fail(ErrorCode::truncated, "file ends inside a DataArray");
     if (!end->closing || end->name != "DataArray")
-      fail_line(path_, end->line, ErrorCode::malformed, "expected </DataArray>, found <" +
-                                                            std::string(end->closing ? "/" : "") + end->name + ">");
+      fail_line(path_, end->line, ErrorCode::malformed,
+                "expected </DataArray>, found <" + std::string(end->closing ? "/" : "") + end->name + ">");
   }
 
   void skip_to_end_of_array() {
@@ -401,12 +410,13 @@ class VtpReader {
     if (!have_piece_ || n_lines_ == 0) throw InputError(ErrorCode::file_empty, path_ + ": holds no polylines");
     if (!have_points_) throw InputError(ErrorCode::malformed, path_ + ": the <Piece> has no <Points> DataArray");
     if (offsets_line_ == 0 || connectivity_line_ == 0 || (grid_ && !have_types_))
-      throw InputError(ErrorCode::malformed, path_ + (grid_ ? ": <Cells> needs the DataArrays 'connectivity', 'offsets' and 'types'"
-                                                           : ": <Lines> needs the DataArrays 'connectivity' and 'offsets'"));
+      throw InputError(ErrorCode::malformed,
+                       path_ + (grid_ ? ": <Cells> needs the DataArrays 'connectivity', 'offsets' and 'types'"
+                                      : ": <Lines> needs the DataArrays 'connectivity' and 'offsets'"));
     if (offsets_.size() != n_lines_)
       fail_line(path_, offsets_line_, ErrorCode::malformed,
-                "offsets array holds " + std::to_string(offsets_.size()) + " values for NumberOfLines = " +
-                    std::to_string(n_lines_));
+                "offsets array holds " + std::to_string(offsets_.size()) +
+                    " values for NumberOfLines = " + std::to_string(n_lines_));
     Polylines result;
     result.lines.reserve(static_cast<std::size_t>(n_lines_));
     std::int64_t begin = 0;
@@ -512,13 +522,13 @@ Polylines read_csv(const std::string& path, std::string_view data, const ReadOpt
   std::uint64_t rows = 0;
   while (next_line(text)) {
     if (text.find_first_not_of(" \t") == std::string_view::npos) continue;  // blank line
-    if (++rows > limit)
-      fail_line(path, line, ErrorCode::too_large, "more than " + std::to_string(limit) + " rows");
+    if (++rows > limit) fail_line(path, line, ErrorCode::too_large, "more than " + std::to_string(limit) + " rows");
     std::string_view fields[7];
     std::size_t n = 0, begin = 0;
     for (;;) {
       const std::size_t comma = text.find(',', begin);
-      const std::string_view field = text.substr(begin, comma == std::string_view::npos ? std::string_view::npos : comma - begin);
+      const std::string_view field =
+          text.substr(begin, comma == std::string_view::npos ? std::string_view::npos : comma - begin);
       if (n < 7) fields[n] = field;
       ++n;
       if (comma == std::string_view::npos) break;
@@ -545,9 +555,11 @@ Polylines read_csv(const std::string& path, std::string_view data, const ReadOpt
       } else {
         double v = 0.0;
         if (!detail::ParseCursor::parse_double(f, v))
-          fail_line(path, line, ErrorCode::bad_number, std::string(names[k]) + " '" + detail::ParseCursor::shorten(f) + "' is not a number");
+          fail_line(path, line, ErrorCode::bad_number,
+                    std::string(names[k]) + " '" + detail::ParseCursor::shorten(f) + "' is not a number");
         if (!std::isfinite(v))
-          fail_line(path, line, ErrorCode::bad_number, std::string(names[k]) + " is " + detail::ParseCursor::shorten(f) + " (not finite)");
+          fail_line(path, line, ErrorCode::bad_number,
+                    std::string(names[k]) + " is " + detail::ParseCursor::shorten(f) + " (not finite)");
         reals[k < 3 ? k - 1 : k - 2] = v;
       }
     }
@@ -565,7 +577,8 @@ Polylines read_csv(const std::string& path, std::string_view data, const ReadOpt
   result.lines.reserve(fibres.size());
   CellArray r_array{"fibre_r", {}}, s_array{"fibre_s", {}};
   for (auto& [id, fibre] : fibres) {
-    std::stable_sort(fibre.rows.begin(), fibre.rows.end(), [](const Row& a, const Row& b) { return a.point < b.point; });
+    std::stable_sort(fibre.rows.begin(), fibre.rows.end(),
+                     [](const Row& a, const Row& b) { return a.point < b.point; });
     for (std::size_t i = 1; i < fibre.rows.size(); ++i)
       if (fibre.rows[i].point == fibre.rows[i - 1].point)
         fail_line(path, fibre.first_line, ErrorCode::malformed,

@@ -43,8 +43,8 @@ PolygonSoup read_binary_stl(const std::string& path, std::string_view data, cons
   if (count > available)
     in.fail_at_byte(84 + available * 50, ErrorCode::truncated,
                     "file ends inside facet " + std::to_string(available) + " of " + std::to_string(count) +
-                        " declared (" + std::to_string(data.size()) + " bytes, " +
-                        std::to_string(84 + count * 50) + " needed)");
+                        " declared (" + std::to_string(data.size()) + " bytes, " + std::to_string(84 + count * 50) +
+                        " needed)");
 
   PolygonSoup soup;
   soup.points.resize(static_cast<std::size_t>(count) * 3);
@@ -57,8 +57,9 @@ PolygonSoup read_binary_stl(const std::string& path, std::string_view data, cons
       for (int c = 0; c < 3; ++c) {
         const float value = ParseCursor::load<float>(q + 4 * c, false);
         if (!std::isfinite(value))
-          in.fail_at_byte(static_cast<std::size_t>(q + 4 * c - data.data()), ErrorCode::bad_number,
-                          "facet " + std::to_string(f) + " vertex " + std::to_string(v) + " has a coordinate that is not finite");
+          in.fail_at_byte(
+              static_cast<std::size_t>(q + 4 * c - data.data()), ErrorCode::bad_number,
+              "facet " + std::to_string(f) + " vertex " + std::to_string(v) + " has a coordinate that is not finite");
         point[c] = static_cast<double>(value);
       }
     }
@@ -105,7 +106,8 @@ PolygonSoup read_ascii_stl(const std::string& path, std::string_view data, const
       loop.clear();
     } else if (iequals(t, "endloop")) {
       if (!in_loop) in.fail(ErrorCode::malformed, "unexpected 'endloop'");
-      if (soup.polygons.size() >= limit) in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " facets");
+      if (soup.polygons.size() >= limit)
+        in.fail(ErrorCode::too_large, "more than " + std::to_string(limit) + " facets");
       soup.polygons.push_back(loop);
       in_loop = false;
     } else if (iequals(t, "endfacet")) {
@@ -141,8 +143,7 @@ PolygonSoup read_stl(const std::string& path, std::string_view data, const ReadO
       return read_ascii_stl(path, data, options);  // the latter reports the missing 'solid'
     if (data.find_first_not_of(" \t\r\n") == std::string_view::npos)
       throw InputError(ErrorCode::file_empty, path + ": line 1: no content (only blanks)");
-    throw InputError(ErrorCode::unknown_format,
-                     path + ": line 1: not an STL file (text without 'solid' or 'facet')");
+    throw InputError(ErrorCode::unknown_format, path + ": line 1: not an STL file (text without 'solid' or 'facet')");
   }
   return read_binary_stl(path, data, options);
 }

@@ -53,8 +53,8 @@ class VtkReader {
         if (have_points) in_.fail(ErrorCode::malformed, "second POINTS section");
         read_points();
         have_points = true;
-      } else if (iequals(keyword, "POLYGONS") || iequals(keyword, "TRIANGLE_STRIPS") ||
-                 iequals(keyword, "LINES") || iequals(keyword, "VERTICES")) {
+      } else if (iequals(keyword, "POLYGONS") || iequals(keyword, "TRIANGLE_STRIPS") || iequals(keyword, "LINES") ||
+                 iequals(keyword, "VERTICES")) {
         if (!have_points) in_.fail(ErrorCode::malformed, std::string(keyword) + " before POINTS");
         read_cells(keyword);
       } else if (iequals(keyword, "FIELD")) {
@@ -80,16 +80,19 @@ class VtkReader {
     // "# " first, checked before the first line's end is searched for (garbage may have none:
     // the whole file would be read to find it).
     if (in_.data().substr(in_.pos(), 2) != "# ")
-      in_.fail_at_line(1, ErrorCode::unknown_format, "not a legacy VTK file (first line is not '# vtk DataFile Version ...')");
+      in_.fail_at_line(1, ErrorCode::unknown_format,
+                       "not a legacy VTK file (first line is not '# vtk DataFile Version ...')");
     const std::string_view first = in_.rest_of_line();
     if (first.substr(0, 2) != "# " || first.find("vtk") == std::string_view::npos ||
         first.find("DataFile") == std::string_view::npos)
-      in_.fail_at_line(1, ErrorCode::unknown_format, "not a legacy VTK file (first line is not '# vtk DataFile Version ...')");
+      in_.fail_at_line(1, ErrorCode::unknown_format,
+                       "not a legacy VTK file (first line is not '# vtk DataFile Version ...')");
     if (in_.at_end()) in_.fail(ErrorCode::truncated, "file ends after the first line");
-    in_.rest_of_line();  // title
+    in_.rest_of_line();                                 // title
     const std::string_view encoding = in_.token_any();  // ALBA writes a blank line before it
     if (encoding.empty()) in_.fail(ErrorCode::truncated, "file ends before ASCII/BINARY");
-    if (iequals(encoding, "BINARY")) binary_ = true;
+    if (iequals(encoding, "BINARY"))
+      binary_ = true;
     else if (!iequals(encoding, "ASCII"))
       in_.fail(ErrorCode::malformed, "expected ASCII or BINARY, found '" + ParseCursor::shorten(encoding) + "'");
     end_line();
@@ -100,13 +103,15 @@ class VtkReader {
     }
     const std::string_view type = in_.token_in_line();
     if (!iequals(type, "POLYDATA"))
-      in_.fail(ErrorCode::unknown_format, "dataset type '" + ParseCursor::shorten(type) + "' is not supported (only POLYDATA)");
+      in_.fail(ErrorCode::unknown_format,
+               "dataset type '" + ParseCursor::shorten(type) + "' is not supported (only POLYDATA)");
     end_line();
   }
 
   /// Ends a keyword line: nothing else may follow on it; binary data starts after its newline.
   void end_line() {
-    if (!in_.at_line_end()) in_.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in_.token_in_line()) + "'");
+    if (!in_.at_line_end())
+      in_.fail(ErrorCode::malformed, "unexpected '" + ParseCursor::shorten(in_.token_in_line()) + "'");
     in_.skip_to_next_line();
     if (binary_) in_.set_binary_locations(true);
   }
@@ -115,7 +120,8 @@ class VtkReader {
     const std::string_view name = in_.token_in_line();
     const auto type = vtk_scalar(name);
     if (!type) in_.fail(ErrorCode::malformed, "unknown data type '" + ParseCursor::shorten(name) + "'");
-    if (integer_only && scalar_is_float(*type)) in_.fail(ErrorCode::malformed, "cell indices must have an integer type");
+    if (integer_only && scalar_is_float(*type))
+      in_.fail(ErrorCode::malformed, "cell indices must have an integer type");
     return *type;
   }
 
@@ -185,7 +191,9 @@ class VtkReader {
     } else {
       check_declared_count(in_, cells, binary_ ? 4 : 2, in_.size(), "cells", options_);
       check_values(size, Scalar::i32, "cell array");
-      if (cells > size) in_.fail(ErrorCode::malformed, "cell count " + std::to_string(cells) + " exceeds the cell array size " + std::to_string(size));
+      if (cells > size)
+        in_.fail(ErrorCode::malformed,
+                 "cell count " + std::to_string(cells) + " exceeds the cell array size " + std::to_string(size));
       lists.reserve(static_cast<std::size_t>(cells));
       std::uint64_t used = 0;
       for (std::uint64_t c = 0; c < cells; ++c) {
@@ -226,10 +234,12 @@ class VtkReader {
       offset[i] = integer(offset_type, "offset");
       const std::int64_t previous = i == 0 ? 0 : offset[i - 1];
       if (offset[i] < previous || static_cast<std::uint64_t>(offset[i]) > size || (i == 0 && offset[i] != 0))
-        in_.fail(ErrorCode::malformed, "offset " + std::to_string(offset[i]) + " is out of order or beyond the connectivity size");
+        in_.fail(ErrorCode::malformed,
+                 "offset " + std::to_string(offset[i]) + " is out of order or beyond the connectivity size");
     }
     if (!offset.empty() && static_cast<std::uint64_t>(offset.back()) != size)
-      in_.fail(ErrorCode::malformed, "last offset " + std::to_string(offset.back()) + " differs from the connectivity size " + std::to_string(size));
+      in_.fail(ErrorCode::malformed, "last offset " + std::to_string(offset.back()) +
+                                         " differs from the connectivity size " + std::to_string(size));
     const std::string_view keyword = in_.token_any();
     if (!iequals(keyword, "CONNECTIVITY"))
       in_.fail(ErrorCode::malformed, "expected CONNECTIVITY, found '" + ParseCursor::shorten(keyword) + "'");
@@ -251,7 +261,8 @@ class VtkReader {
     const ParseCursor::Mark mark = in_.mark();
     in_.skip_space_and_comments();
     std::size_t end = in_.pos();
-    while (end < in_.size() && (std::isalpha(static_cast<unsigned char>(in_.data()[end])) || in_.data()[end] == '_')) ++end;
+    while (end < in_.size() && (std::isalpha(static_cast<unsigned char>(in_.data()[end])) || in_.data()[end] == '_'))
+      ++end;
     const std::string_view t = in_.data().substr(in_.pos(), end - in_.pos());
     in_.reset(mark);
     return t;
@@ -269,7 +280,8 @@ class VtkReader {
       const std::uint64_t tuples = in_.count("tuple count", true);
       const Scalar type = type_in_line(false);
       end_line();
-      if (components > 0 && tuples > UINT64_MAX / components) in_.fail(ErrorCode::too_large, "FIELD array is too large");
+      if (components > 0 && tuples > UINT64_MAX / components)
+        in_.fail(ErrorCode::too_large, "FIELD array is too large");
       skip_values(components * tuples, type, "FIELD array");
     }
   }
@@ -314,7 +326,8 @@ class VtkReader {
           const std::uint64_t tuples = in_.count("tuple count", true);
           const Scalar type = type_in_line(false);
           end_line();
-          if (components > 0 && tuples > UINT64_MAX / components) in_.fail(ErrorCode::too_large, "FIELD array is too large");
+          if (components > 0 && tuples > UINT64_MAX / components)
+            in_.fail(ErrorCode::too_large, "FIELD array is too large");
           keep_or_skip(std::move(array), n, tuples, components, type, "FIELD array");
         }
         continue;

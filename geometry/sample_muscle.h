@@ -13,18 +13,18 @@ namespace fascicle {
 
 /// Shape, resolution and defects of the sample muscle. Lengths in millimetres.
 struct SampleOptions {
-  double length = 120.0;          ///< tip-to-tip length along the axis, mm (default 120)
-  double belly_radius = 15.0;     ///< largest cross-section semi-axis at mid-belly, mm (default 15)
-  double tendon_radius = 2.5;     ///< radius where the belly tapers into the rounded tips, mm (default 2.5)
-  double ellipticity = 0.7;       ///< minor / major semi-axis of every cross-section, (0, 1] (default 0.7)
-  double axis_bend = 6.0;         ///< sagitta of the curved axis from the tip-to-tip chord, mm (default 6)
-  int rings = 80;                 ///< rings between the tips, 2 * rings * segments triangles (default 80)
-  int segments = 48;              ///< points per ring (default 48)
-  std::uint64_t seed = 1;         ///< seed of the defect injector; the clean shape ignores it (default 1)
-  bool defects = true;            ///< inject defects; false: the clean surface as a soup (default true)
-  int holes = 3;                  ///< holes cut into the surface (default 3)
-  int hole_faces = 10;            ///< faces removed per hole (default 10)
-  int flipped_faces = 30;         ///< faces in the one flipped patch (default 30)
+  double length = 120.0;             ///< tip-to-tip length along the axis, mm (default 120)
+  double belly_radius = 15.0;        ///< largest cross-section semi-axis at mid-belly, mm (default 15)
+  double tendon_radius = 2.5;        ///< radius where the belly tapers into the rounded tips, mm (default 2.5)
+  double ellipticity = 0.7;          ///< minor / major semi-axis of every cross-section, (0, 1] (default 0.7)
+  double axis_bend = 6.0;            ///< sagitta of the curved axis from the tip-to-tip chord, mm (default 6)
+  int rings = 80;                    ///< rings between the tips, 2 * rings * segments triangles (default 80)
+  int segments = 48;                 ///< points per ring (default 48)
+  std::uint64_t seed = 1;            ///< seed of the defect injector; the clean shape ignores it (default 1)
+  bool defects = true;               ///< inject defects; false: the clean surface as a soup (default true)
+  int holes = 3;                     ///< holes cut into the surface (default 3)
+  int hole_faces = 10;               ///< faces removed per hole (default 10)
+  int flipped_faces = 30;            ///< faces in the one flipped patch (default 30)
   double duplicate_fraction = 0.02;  ///< share of vertices duplicated as exact copies (default 0.02)
 
   /// Throws OptionError naming the first field out of range: lengths and radii must be finite

@@ -26,11 +26,14 @@ std::size_t section_count(detail::ParseCursor& in, const char* what, std::uint64
 void next_record(detail::ParseCursor& in, const char* what, std::size_t index, std::size_t count) {
   in.skip_space_and_comments();
   if (in.at_end())
-    in.fail(ErrorCode::truncated, "file ends after " + std::to_string(index) + " of " + std::to_string(count) + " " + what);
+    in.fail(ErrorCode::truncated,
+            "file ends after " + std::to_string(index) + " of " + std::to_string(count) + " " + what);
 }
 
 void end_record(detail::ParseCursor& in) {
-  if (!in.at_line_end()) in.fail(ErrorCode::malformed, "unexpected '" + detail::ParseCursor::shorten(in.token_in_line()) + "' at the end of the line");
+  if (!in.at_line_end())
+    in.fail(ErrorCode::malformed,
+            "unexpected '" + detail::ParseCursor::shorten(in.token_in_line()) + "' at the end of the line");
   in.skip_to_next_line();
 }
 
@@ -71,7 +74,8 @@ ThesisModel read_thesis(const std::string& path, std::string_view data, const Re
     const double z = in.number("z coordinate", true);
     const std::string_view flag = in.token_in_line();
     if (flag != "m" && flag != "i")
-      in.fail(ErrorCode::malformed, "point flag '" + detail::ParseCursor::shorten(flag) + "' is neither 'm' (surface) nor 'i' (inner)");
+      in.fail(ErrorCode::malformed,
+              "point flag '" + detail::ParseCursor::shorten(flag) + "' is neither 'm' (surface) nor 'i' (inner)");
     model.points.emplace_back(x, y, z);
     model.surface.push_back(flag == "m" ? 1 : 0);
     surface += flag == "m" ? 1 : 0;
@@ -173,7 +177,8 @@ void write_thesis_model(const std::string& path, const ThesisModel& model) {
       out += std::to_string(i) + "\n";
     }
   }
-  write_file_atomically(path, [&](std::ostream& stream) { stream.write(out.data(), static_cast<std::streamsize>(out.size())); });
+  write_file_atomically(
+      path, [&](std::ostream& stream) { stream.write(out.data(), static_cast<std::streamsize>(out.size())); });
 }
 
 }  // namespace fascicle

@@ -30,13 +30,13 @@ struct ThesisModel {
     int a = 0, b = 0;
     double stiffness = 1.0;  ///< Hooke constant D_ij, force units per length unit
   };
-  std::vector<Vec3> points;           ///< N positions
-  std::vector<char> surface;          ///< N flags: 1 for 'm' (surface, fixed), 0 for 'i'
-  std::vector<Triangle> triangles;    ///< T surface triangles
-  std::vector<Spring> springs;        ///< S springs
+  std::vector<Vec3> points;                ///< N positions
+  std::vector<char> surface;               ///< N flags: 1 for 'm' (surface, fixed), 0 for 'i'
+  std::vector<Triangle> triangles;         ///< T surface triangles
+  std::vector<Spring> springs;             ///< S springs
   std::vector<std::array<int, 2>> fibres;  ///< F fibres, each from one point index to another
-  std::vector<int> origin;            ///< origin-area point indices
-  std::vector<int> insertion;         ///< insertion-area point indices
+  std::vector<int> origin;                 ///< origin-area point indices
+  std::vector<int> insertion;              ///< insertion-area point indices
 };
 
 /// Reads a thesis-format file. Indices in the file are 0-based; every section (counts included)

@@ -46,7 +46,8 @@ std::string off_text(const TriangleMesh& mesh) {
     append_point(out, p);
     out += '\n';
   }
-  for (const Triangle& t : mesh.triangles) out += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + "\n";
+  for (const Triangle& t : mesh.triangles)
+    out += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + "\n";
   return out;
 }
 
@@ -70,7 +71,8 @@ std::string vtk_text(const TriangleMesh& mesh) {
     out += '\n';
   }
   out += "POLYGONS " + std::to_string(mesh.triangles.size()) + " " + std::to_string(4 * mesh.triangles.size()) + "\n";
-  for (const Triangle& t : mesh.triangles) out += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + "\n";
+  for (const Triangle& t : mesh.triangles)
+    out += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + "\n";
   return out;
 }
 
@@ -123,13 +125,19 @@ void write_triangle_mesh(const std::string& path, const TriangleMesh& mesh) {
   check_mesh(path, mesh);
   std::string content;
   const bool binary = ext == "ply" || ext == "stl";
-  if (ext == "off") content = off_text(mesh);
-  else if (ext == "obj") content = obj_text(mesh);
-  else if (ext == "vtk") content = vtk_text(mesh);
-  else if (ext == "ply") content = ply_bytes(mesh);
-  else content = stl_bytes(path, mesh);
+  if (ext == "off")
+    content = off_text(mesh);
+  else if (ext == "obj")
+    content = obj_text(mesh);
+  else if (ext == "vtk")
+    content = vtk_text(mesh);
+  else if (ext == "ply")
+    content = ply_bytes(mesh);
+  else
+    content = stl_bytes(path, mesh);
   write_file_atomically(
-      path, [&](std::ostream& out) { out.write(content.data(), static_cast<std::streamsize>(content.size())); }, binary);
+      path, [&](std::ostream& out) { out.write(content.data(), static_cast<std::streamsize>(content.size())); },
+      binary);
 }
 
 }  // namespace fascicle

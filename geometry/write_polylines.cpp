@@ -40,13 +40,17 @@ bool integral(const CellArray& array) {
 }
 
 void append_value(std::string& out, double v, bool as_integer) {
-  if (as_integer) detail::append_int(out, static_cast<long long>(v));
-  else detail::append_double(out, v);
+  if (as_integer)
+    detail::append_int(out, static_cast<long long>(v));
+  else
+    detail::append_double(out, v);
 }
 
 // The <Points> block of the XML formats.
 std::string xml_points(const Polylines& lines) {
-  std::string out = "      <Points>\n        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  std::string out =
+      "      <Points>\n        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" "
+      "format=\"ascii\">\n";
   for (const auto& line : lines.lines)
     for (const Vec3& p : line) {
       out += "          ";
@@ -178,7 +182,8 @@ std::string vtp_text(const Polylines& lines) {
   }
   out += "        </DataArray>\n      </Lines>\n";
   std::vector<CellArray> arrays = lines.cell_data;
-  out += xml_cell_data(arrays, [](std::size_t line) { return line; }, lines.lines.size());
+  out += xml_cell_data(
+      arrays, [](std::size_t line) { return line; }, lines.lines.size());
   out += "    </Piece>\n  </PolyData>\n</VTKFile>\n";
   return out;
 }
@@ -193,7 +198,8 @@ std::string vtu_text(const Polylines& lines) {
   std::string out = "<?xml version=\"1.0\"?>\n";
   out += "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
   out += "  <UnstructuredGrid>\n";
-  out += "    <Piece NumberOfPoints=\"" + std::to_string(total) + "\" NumberOfCells=\"" + std::to_string(segments) + "\">\n";
+  out += "    <Piece NumberOfPoints=\"" + std::to_string(total) + "\" NumberOfCells=\"" + std::to_string(segments) +
+         "\">\n";
   out += xml_points(lines);
   out += "      <Cells>\n        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
   std::vector<std::size_t> owner;  // fibre of each segment
@@ -223,7 +229,8 @@ std::string vtu_text(const Polylines& lines) {
   std::vector<CellArray> arrays{fibre};
   for (const CellArray& a : lines.cell_data)
     if (a.name != "fibre") arrays.push_back(a);
-  out += xml_cell_data(arrays, [&](std::size_t cell) { return owner[cell]; }, segments);
+  out += xml_cell_data(
+      arrays, [&](std::size_t cell) { return owner[cell]; }, segments);
   out += "    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
   return out;
 }
@@ -280,14 +287,17 @@ void write_polylines(const std::string& path, const Polylines& lines) {
   for (const CellArray& array : lines.cell_data) {
     FASCICLE_CHECK(array.values.size() == lines.lines.size(),
                    "writing " + path + ": cell array '" + array.name + "' does not hold one value per line");
-    for (double v : array.values) FASCICLE_CHECK(std::isfinite(v), "writing " + path + ": cell array '" + array.name + "' holds a value that is not finite");
+    for (double v : array.values)
+      FASCICLE_CHECK(std::isfinite(v),
+                     "writing " + path + ": cell array '" + array.name + "' holds a value that is not finite");
   }
   const std::string content = ext == "vtk"   ? vtk_text(lines)
                               : ext == "vtp" ? vtp_text(lines)
                               : ext == "vtu" ? vtu_text(lines)
                               : ext == "csv" ? csv_text(lines)
                                              : obj_text(lines);
-  write_file_atomically(path, [&](std::ostream& out) { out.write(content.data(), static_cast<std::streamsize>(content.size())); });
+  write_file_atomically(
+      path, [&](std::ostream& out) { out.write(content.data(), static_cast<std::streamsize>(content.size())); });
 }
 
 }  // namespace fascicle

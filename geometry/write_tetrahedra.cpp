@@ -9,19 +9,23 @@ namespace fascicle {
 void write_tetrahedra(const std::string& path, const TetMesh& mesh, const std::string& name,
                       const std::vector<Vec3>& cell_vectors) {
   if (lower_extension(path) != "vtu")
-    throw InputError(ErrorCode::unknown_format, path + ": cannot write tetrahedra as '" + lower_extension(path) + "' (use .vtu)");
+    throw InputError(ErrorCode::unknown_format,
+                     path + ": cannot write tetrahedra as '" + lower_extension(path) + "' (use .vtu)");
   FASCICLE_CHECK(cell_vectors.empty() || cell_vectors.size() == mesh.tets.size(),
                  "writing " + path + ": the cell array does not hold one vector per tetrahedron");
   for (const Vec3& p : mesh.positions) FASCICLE_CHECK(p.allFinite(), "writing " + path + ": a point is not finite");
   for (const Vec3& v : cell_vectors) FASCICLE_CHECK(v.allFinite(), "writing " + path + ": a cell vector is not finite");
   for (const Tetrahedron& t : mesh.tets)
     for (int v : t)
-      FASCICLE_CHECK(v >= 0 && static_cast<std::size_t>(v) < mesh.positions.size(), "writing " + path + ": a tetrahedron index is out of range");
+      FASCICLE_CHECK(v >= 0 && static_cast<std::size_t>(v) < mesh.positions.size(),
+                     "writing " + path + ": a tetrahedron index is out of range");
   std::string out = "<?xml version=\"1.0\"?>\n";
   out += "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
   out += "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" + std::to_string(mesh.positions.size()) +
          "\" NumberOfCells=\"" + std::to_string(mesh.tets.size()) + "\">\n";
-  out += "      <Points>\n        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  out +=
+      "      <Points>\n        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" "
+      "format=\"ascii\">\n";
   for (const Vec3& p : mesh.positions) {
     out += "          ";
     for (int k = 0; k < 3; ++k) {

@@ -39,9 +39,9 @@ nlohmann::json AlignReport::to_json() const {
           {"flipped", flipped}};
 }
 
-AlignReport align_on_sphere(const std::vector<Triangle>& triangles, std::vector<Vec3>& sphere, const SurfacePoint& origin,
-                            const SurfacePoint& insertion, const Vec3& target_origin, const Vec3& target_insertion,
-                            const AlignOptions& options) {
+AlignReport align_on_sphere(const std::vector<Triangle>& triangles, std::vector<Vec3>& sphere,
+                            const SurfacePoint& origin, const SurfacePoint& insertion, const Vec3& target_origin,
+                            const Vec3& target_insertion, const AlignOptions& options) {
   options.validate();
   const Vec3 to = target_origin.normalized(), ti = target_insertion.normalized();
   if (!(to.cross(ti).norm() > 1e-12) && to.dot(ti) > 0.0)

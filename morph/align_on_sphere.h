@@ -30,12 +30,12 @@ struct AlignOptions {
 
 /// What the alignment did.
 struct AlignReport {
-  double origin_error_deg = 0.0;             ///< angle between the origin centres at the end
-  double insertion_error_rotation_deg = 0.0; ///< insertion angle after the two rotations
-  double insertion_error_deg = 0.0;          ///< insertion angle at the end
-  int rounds = 0;                            ///< pull rounds taken
-  int halvings = 0;                          ///< pulls halved because a triangle would flip
-  long flipped = 0;                          ///< triangles with det <= 0 at the end (always 0)
+  double origin_error_deg = 0.0;              ///< angle between the origin centres at the end
+  double insertion_error_rotation_deg = 0.0;  ///< insertion angle after the two rotations
+  double insertion_error_deg = 0.0;           ///< insertion angle at the end
+  int rounds = 0;                             ///< pull rounds taken
+  int halvings = 0;                           ///< pulls halved because a triangle would flip
+  long flipped = 0;                           ///< triangles with det <= 0 at the end (always 0)
   nlohmann::json to_json() const;
 };
 

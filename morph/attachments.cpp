@@ -77,7 +77,8 @@ EndBand end_band(const std::vector<double>& along, const std::vector<char>& used
   std::vector<int> order;
   for (std::size_t v = 0; v < along.size(); ++v)
     if (used[v] && parent[v] < 0 && inside(along[v], limit)) order.push_back(static_cast<int>(v));
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return upper ? along[a] > along[b] : along[a] < along[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return upper ? along[a] > along[b] : along[a] < along[b]; });
   for (std::size_t next = 0; next < order.size();) {
     const double value = along[order[next]];
     while (next < order.size() && along[order[next]] == value) add(order[next++]);
@@ -122,8 +123,7 @@ nlohmann::json AttachmentArea::to_json() const {
 AttachmentArea project_landmarks(const SurfaceQuery& query, double diagonal, const std::vector<Vec3>& landmarks,
                                  const std::string& source, const AttachmentOptions& options) {
   options.validate();
-  if (landmarks.empty())
-    throw InputError(ErrorCode::landmarks, source + ": no landmark points");
+  if (landmarks.empty()) throw InputError(ErrorCode::landmarks, source + ": no landmark points");
   AttachmentArea area;
   area.source = source;
   const double tolerance = options.max_landmark_distance * diagonal;
@@ -150,15 +150,14 @@ Attachments landmark_attachments(const TriangleMesh& mesh, const std::vector<Vec
   out.origin = project_landmarks(query, diagonal, origin, origin_source, options);
   out.insertion = project_landmarks(query, diagonal, insertion, insertion_source, options);
   if ((out.origin.centroid() - out.insertion.centroid()).norm() < 1e-6 * diagonal)
-    throw InputError(ErrorCode::landmarks, origin_source + " and " + insertion_source +
-                                               ": origin and insertion areas have the same centre");
+    throw InputError(ErrorCode::landmarks,
+                     origin_source + " and " + insertion_source + ": origin and insertion areas have the same centre");
   return out;
 }
 
 Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOptions& options) {
   options.validate();
-  if (mesh.positions.empty() || mesh.triangles.empty())
-    throw TopologyError("automatic attachments: the mesh is empty");
+  if (mesh.positions.empty() || mesh.triangles.empty()) throw TopologyError("automatic attachments: the mesh is empty");
   const std::size_t nv = mesh.positions.size();
   const PrincipalAxes principal = principal_axes(mesh.positions);
   const Vec3& mean = principal.mean;
@@ -188,8 +187,7 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
   const VertexNeighbours neighbours(mesh);
   const double widest = options.max_end_fraction * extent;
   const double margin = options.connect_margin * extent;
-  const EndBand upper =
-      end_band(along, used, neighbours, true, hi - band, hi - widest, options.connected_ends, margin);
+  const EndBand upper = end_band(along, used, neighbours, true, hi - band, hi - widest, options.connected_ends, margin);
   const EndBand lower =
       end_band(along, used, neighbours, false, lo + band, lo + widest, options.connected_ends, margin);
   Attachments out;
@@ -212,7 +210,8 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
   return out;
 }
 
-Vec3 sphere_centre(const AttachmentArea& area, const std::vector<Vec3>& sphere, const std::vector<Triangle>& triangles) {
+Vec3 sphere_centre(const AttachmentArea& area, const std::vector<Vec3>& sphere,
+                   const std::vector<Triangle>& triangles) {
   Vec3 sum = Vec3::Zero();
   for (const SurfacePoint& p : area.points) sum += point_on_sphere(sphere, triangles, p);
   const double n = sum.norm();

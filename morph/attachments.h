@@ -33,9 +33,9 @@ struct AttachmentOptions {
 
 /// One attachment area: its points on the surface.
 struct AttachmentArea {
-  std::string source;                 ///< file name, or "automatic"
-  std::vector<SurfacePoint> points;   ///< on the muscle surface (face, barycentric, position)
-  double max_distance = 0.0;          ///< largest landmark-to-surface distance, mesh units
+  std::string source;                ///< file name, or "automatic"
+  std::vector<SurfacePoint> points;  ///< on the muscle surface (face, barycentric, position)
+  double max_distance = 0.0;         ///< largest landmark-to-surface distance, mesh units
   /// Automatic areas: the share of the extent the area's band takes (end_fraction, or wider where
   /// AttachmentOptions::connected_ends joined its pieces), and how many connected pieces the
   /// band of end_fraction had (1 for a simple end). 0 for landmark areas.
@@ -79,7 +79,6 @@ Attachments landmark_attachments(const TriangleMesh& mesh, const std::vector<Vec
 
 /// Centre of an area on a sphere map: the normalised mean of its points' sphere images
 /// (`sphere`: #V unit vectors of the map of the mesh whose triangles are `triangles`).
-Vec3 sphere_centre(const AttachmentArea& area, const std::vector<Vec3>& sphere,
-                   const std::vector<Triangle>& triangles);
+Vec3 sphere_centre(const AttachmentArea& area, const std::vector<Vec3>& sphere, const std::vector<Triangle>& triangles);
 
 }  // namespace fascicle

@@ -50,8 +50,8 @@ inline double star_det(const Vec3& b, const Vec3& d, const Vec3& p) {
 
 }  // namespace
 
-int mobius_center(const TriangleMesh& mesh, const std::vector<double>& shares, std::vector<Vec3>& sphere,
-                  int max_steps, double tolerance, double& residual) {
+int mobius_center(const TriangleMesh& mesh, const std::vector<double>& shares, std::vector<Vec3>& sphere, int max_steps,
+                  double tolerance, double& residual) {
   std::vector<Vec3> trial(sphere.size());
   Vec3 c = area_centroid(mesh, shares, sphere);
   int steps = 0;
@@ -113,7 +113,8 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
   // Active set: a vertex is relaxed again only when it or a neighbour moved by more than
   // `still` (1e-3 of the mean edge length) in the sweep before; the rest is already balanced
   // locally and would only cost time.
-  const double still = 1e-3 * std::sqrt(4.0 * M_PI / static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1)));
+  const double still =
+      1e-3 * std::sqrt(4.0 * M_PI / static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1)));
   std::vector<char> active(nv, 1), next_active(nv, 0);
   int sweep = 0;
   for (; sweep < max_sweeps; ++sweep) {
@@ -186,7 +187,8 @@ int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adj, const std:
           moved = true;
           if (y.norm() > still) {
             next_active[v] = 1;
-            for (int i = adj.neighbour_start[v]; i < adj.neighbour_start[v + 1]; ++i) next_active[adj.neighbours[i]] = 1;
+            for (int i = adj.neighbour_start[v]; i < adj.neighbour_start[v + 1]; ++i)
+              next_active[adj.neighbours[i]] = 1;
           }
           break;
         }

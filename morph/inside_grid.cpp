@@ -92,12 +92,14 @@ InsideGrid::Known InsideGrid::classify(const Vec3& p) const {
 std::vector<long> InsideGrid::candidate_cells() const {
   std::vector<long> cells;
   for (long c = 0; c < grid_.cells(); ++c)
-    if (state_[static_cast<std::size_t>(c)] == kInside || state_[static_cast<std::size_t>(c)] == kNear) cells.push_back(c);
+    if (state_[static_cast<std::size_t>(c)] == kInside || state_[static_cast<std::size_t>(c)] == kNear)
+      cells.push_back(c);
   return cells;
 }
 
 Vec3 InsideGrid::cell_corner(long c) const {
-  const long i = c % grid_.n[0], j = (c / grid_.n[0]) % grid_.n[1], k = c / (static_cast<long>(grid_.n[0]) * grid_.n[1]);
+  const long i = c % grid_.n[0], j = (c / grid_.n[0]) % grid_.n[1],
+             k = c / (static_cast<long>(grid_.n[0]) * grid_.n[1]);
   return grid_.origin + grid_.h * Vec3(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
 }
 

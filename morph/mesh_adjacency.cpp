@@ -10,13 +10,11 @@ namespace fascicle {
 namespace {
 
 std::uint64_t edge_key(int a, int b) {
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
-         static_cast<std::uint32_t>(b);
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) | static_cast<std::uint32_t>(b);
 }
 
 [[noreturn]] void fail(const std::string& what) {
-  throw TopologyError("sphere map needs a closed genus-0 mesh: " + what +
-                      " (run `fascicle repair` first)");
+  throw TopologyError("sphere map needs a closed genus-0 mesh: " + what + " (run `fascicle repair` first)");
 }
 
 }  // namespace
@@ -24,8 +22,7 @@ std::uint64_t edge_key(int a, int b) {
 MeshAdjacency check_sphere_topology(const TriangleMesh& mesh) {
   const int nv = static_cast<int>(mesh.positions.size());
   const int nf = static_cast<int>(mesh.triangles.size());
-  if (nv < 4 || nf < 4)
-    fail(std::to_string(nv) + " vertices and " + std::to_string(nf) + " triangles are too few");
+  if (nv < 4 || nf < 4) fail(std::to_string(nv) + " vertices and " + std::to_string(nf) + " triangles are too few");
 
   MeshAdjacency adj;
   adj.corner_start.assign(nv + 1, 0);
@@ -33,10 +30,9 @@ MeshAdjacency check_sphere_topology(const TriangleMesh& mesh) {
     const Triangle& t = mesh.triangles[f];
     for (int k = 0; k < 3; ++k)
       if (t[k] < 0 || t[k] >= nv)
-        fail("triangle " + std::to_string(f) + " refers to vertex " + std::to_string(t[k]) +
-             " of " + std::to_string(nv));
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0])
-      fail("triangle " + std::to_string(f) + " repeats a vertex");
+        fail("triangle " + std::to_string(f) + " refers to vertex " + std::to_string(t[k]) + " of " +
+             std::to_string(nv));
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) fail("triangle " + std::to_string(f) + " repeats a vertex");
     for (int k = 0; k < 3; ++k) ++adj.corner_start[t[k] + 1];
   }
   for (int v = 0; v < nv; ++v) {
@@ -75,8 +71,8 @@ MeshAdjacency check_sphere_topology(const TriangleMesh& mesh) {
   for (const auto& [key, f] : directed) {
     const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
     if (!directed.count(edge_key(b, a)))
-      fail("edge " + std::to_string(a) + "-" + std::to_string(b) + " of triangle " +
-           std::to_string(f) + " has no opposite triangle (open mesh)");
+      fail("edge " + std::to_string(a) + "-" + std::to_string(b) + " of triangle " + std::to_string(f) +
+           " has no opposite triangle (open mesh)");
   }
 
   // One fan per vertex: following next -> the corner whose prev is that vertex must visit all.
@@ -124,14 +120,14 @@ MeshAdjacency check_sphere_topology(const TriangleMesh& mesh) {
     }
   }
   if (reached != nv)
-    fail("the mesh has more than one connected component (" + std::to_string(reached) + " of " +
-         std::to_string(nv) + " vertices reached from vertex 0)");
+    fail("the mesh has more than one connected component (" + std::to_string(reached) + " of " + std::to_string(nv) +
+         " vertices reached from vertex 0)");
 
   const long edges = static_cast<long>(directed.size()) / 2;
   const long euler = static_cast<long>(nv) - edges + nf;
   if (euler != 2)
-    fail("Euler characteristic is " + std::to_string(euler) + ", genus " +
-         std::to_string((2 - euler) / 2) + " (a sphere map needs genus 0)");
+    fail("Euler characteristic is " + std::to_string(euler) + ", genus " + std::to_string((2 - euler) / 2) +
+         " (a sphere map needs genus 0)");
   return adj;
 }
 

@@ -32,15 +32,18 @@ struct Task {
 struct Work {
   std::vector<double> y;
   std::vector<Index> pattern, tags;
-  explicit Work(Index n) : y(static_cast<std::size_t>(n), 0.0), pattern(static_cast<std::size_t>(n)), tags(static_cast<std::size_t>(n), -1) {}
+  explicit Work(Index n)
+      : y(static_cast<std::size_t>(n), 0.0),
+        pattern(static_cast<std::size_t>(n)),
+        tags(static_cast<std::size_t>(n), -1) {}
 };
 
 }  // namespace
 
 struct ParallelLDLT::Plan {
-  Matrix permuted;             // P A P' (upper triangle), values gathered per factorize
-  std::vector<int> gather;     // per slot of `permuted`: slot of `a` it comes from
-  std::vector<Task> tasks;     // tasks.back() is the root task
+  Matrix permuted;          // P A P' (upper triangle), values gathered per factorize
+  std::vector<int> gather;  // per slot of `permuted`: slot of `a` it comes from
+  std::vector<Task> tasks;  // tasks.back() is the root task
 };
 
 ParallelLDLT::ParallelLDLT() : plan_(std::make_unique<Plan>()) {}

@@ -140,8 +140,10 @@ long reembed_patches(const TriangleMesh& mesh, const MeshAdjacency& adj, std::ve
       // This cluster resists; the others may still be fixable, so drop its marks and go on.
       bool other = false;
       for (int v = 0; v < nv; ++v)
-        if (cluster[v]) mark[v] = 0;
-        else if (mark[v]) other = true;
+        if (cluster[v])
+          mark[v] = 0;
+        else if (mark[v])
+          other = true;
       if (!other) break;
     }
   }

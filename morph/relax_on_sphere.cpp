@@ -101,9 +101,8 @@ std::vector<Vec3> thesis_relax(const TriangleMesh& mesh, const MeshAdjacency& ad
   if (!query.inside(centre)) {
     const SurfacePoint near = query.closest_point(centre);
     const Triangle& t = mesh.triangles[near.face];
-    const Vec3 normal = (mesh.positions[t[1]] - mesh.positions[t[0]])
-                            .cross(mesh.positions[t[2]] - mesh.positions[t[0]])
-                            .normalized();
+    const Vec3 normal =
+        (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]).normalized();
     double depth = 1e-3 * radius;
     Vec3 moved = near.position - depth * normal;
     for (int attempt = 0; attempt < 40 && !query.inside(moved); ++attempt) {

@@ -34,8 +34,10 @@ double SignedDistanceGrid::exact(const Vec3& p) const {
 }
 
 double SignedDistanceGrid::node(int i, int j, int k) {
-  double& v = values_[static_cast<std::size_t>(i) +
-                      static_cast<std::size_t>(n_[0]) * (static_cast<std::size_t>(j) + static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(k))];
+  double& v =
+      values_[static_cast<std::size_t>(i) +
+              static_cast<std::size_t>(n_[0]) *
+                  (static_cast<std::size_t>(j) + static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(k))];
   if (std::isnan(v)) {
     v = exact(low_ + cell_ * Vec3(i, j, k));
     ++computed_;

@@ -110,8 +110,7 @@ struct SphereLocator::Impl {
     const Point origin(0, 0, 0);
     on_boundary = false;
     for (int k = 0; k < 3; ++k) {
-      const CGAL::Orientation o =
-          CGAL::orientation(origin, chords[f].vertex(k), chords[f].vertex((k + 1) % 3), p);
+      const CGAL::Orientation o = CGAL::orientation(origin, chords[f].vertex(k), chords[f].vertex((k + 1) % 3), p);
       if (o == CGAL::NEGATIVE) return false;
       if (o == CGAL::COPLANAR) on_boundary = true;
     }
@@ -211,7 +210,8 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
   {
     std::vector<int> fill(first.begin(), first.end() - 1);
     for (int f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) leaving[static_cast<std::size_t>(fill[static_cast<std::size_t>(triangles[f][k])]++)] = f * 3 + k;
+      for (int k = 0; k < 3; ++k)
+        leaving[static_cast<std::size_t>(fill[static_cast<std::size_t>(triangles[f][k])]++)] = f * 3 + k;
   }
   d.across.assign(nf, {-1, -1, -1});
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, 2048), [&](const tbb::blocked_range<int>& range) {
@@ -256,24 +256,25 @@ SphereLocator::SphereLocator(const std::vector<Vec3>& sphere, const std::vector<
     for (int c = 0; c < static_cast<int>(d.start.size()); ++c)
       if (d.start[static_cast<std::size_t>(c)] < 0) empty.push_back(c);
     std::atomic<bool> any{false};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, empty.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
-      for (std::size_t e = range.begin(); e != range.end(); ++e) {
-        const int c = empty[e];
-        const int iv = c % g, iu = (c / g) % g, face = c / (g * g);
-        int from = -1;
-        for (const auto& [du, dv] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
-          const int u = iu + du, v = iv + dv;
-          if (u < 0 || u >= g || v < 0 || v >= g) continue;
-          from = d.start[static_cast<std::size_t>((face * g + u) * g + v)];
-          if (from >= 0) break;
-        }
-        if (from < 0) continue;
-        bool on_boundary = false;
-        const int walked = d.walk(from, to_point(d.cell_centre(c)), on_boundary);
-        next[static_cast<std::size_t>(c)] = walked >= 0 ? walked : from;
-        any = true;
-      }
-    });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, empty.size(), 64), [&](const tbb::blocked_range<std::size_t>& range) {
+          for (std::size_t e = range.begin(); e != range.end(); ++e) {
+            const int c = empty[e];
+            const int iv = c % g, iu = (c / g) % g, face = c / (g * g);
+            int from = -1;
+            for (const auto& [du, dv] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+              const int u = iu + du, v = iv + dv;
+              if (u < 0 || u >= g || v < 0 || v >= g) continue;
+              from = d.start[static_cast<std::size_t>((face * g + u) * g + v)];
+              if (from >= 0) break;
+            }
+            if (from < 0) continue;
+            bool on_boundary = false;
+            const int walked = d.walk(from, to_point(d.cell_centre(c)), on_boundary);
+            next[static_cast<std::size_t>(c)] = walked >= 0 ? walked : from;
+            any = true;
+          }
+        });
     d.start.swap(next);
     if (!any) break;
   }

@@ -26,9 +26,11 @@ const char* to_string(SphereStart start) {
 }
 
 SphereStart sphere_start_from_string(const std::string& name) {
-  for (SphereStart s : {SphereStart::automatic, SphereStart::tube, SphereStart::progressive, SphereStart::stereographic})
+  for (SphereStart s :
+       {SphereStart::automatic, SphereStart::tube, SphereStart::progressive, SphereStart::stereographic})
     if (name == to_string(s)) return s;
-  throw OptionError("--sphere-start: '" + name + "' is not a start (use automatic, tube, progressive or stereographic)");
+  throw OptionError("--sphere-start: '" + name +
+                    "' is not a start (use automatic, tube, progressive or stereographic)");
 }
 
 SphereMethod sphere_method_from_string(const std::string& name) {
@@ -66,12 +68,9 @@ void SphereMapOptions::validate() const {
 }
 
 nlohmann::json SphereMapReport::to_json() const {
-  nlohmann::json j{{"method", method},
-                   {"status", status},
-                   {"failure", failure},
-                   {"quality", fascicle::to_json(quality)},
-                   {"iterations", iterations},
-                   {"seconds", seconds}};
+  nlohmann::json j{{"method", method},         {"status", status},
+                   {"failure", failure},       {"quality", fascicle::to_json(quality)},
+                   {"iterations", iterations}, {"seconds", seconds}};
   if (method == "tutte") {
     j["initial_map"] = initial_map;
     j["starts_tried"] = starts_tried;
@@ -181,7 +180,8 @@ SphereMap map_to_sphere(const TriangleMesh& mesh, const SphereMapOptions& option
         lift.sphere = std::move(progressive.sphere);
         lift.kind = "progressive";
         for (const Triangle& t : mesh.triangles)
-          if (!(detail::sphere_triangle_area(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]) > degenerate_area))
+          if (!(detail::sphere_triangle_area(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]) >
+                degenerate_area))
             ++bad;
         report.starts_tried.push_back("progressive");
       } else {

@@ -103,14 +103,14 @@ struct SphereMapOptions {
   /// Largest number of area-balancing sweeps, 0 disables (default 60: tube starts converge well within
   /// it; the cap bounds slowly improving stereographic starts; raise it when quality matters more).
   int balance_sweeps = 60;
-  double balance_tolerance = 1e-4; ///< stop balancing when a sweep lowers the energy by less (default 1e-4)
+  double balance_tolerance = 1e-4;  ///< stop balancing when a sweep lowers the energy by less (default 1e-4)
 
   // --- relax (thesis) ---
-  double relax_threshold = 1e-5;   ///< stop below this largest vertex move, sphere units (default 1e-5)
-  int relax_max_iterations = 10000;  ///< iterations of one relaxation (default 10000, the thesis's cap)
-  int relax_restarts = 5;          ///< new random tetrahedra tried after a failed collapse check (default 5)
+  double relax_threshold = 1e-5;      ///< stop below this largest vertex move, sphere units (default 1e-5)
+  int relax_max_iterations = 10000;   ///< iterations of one relaxation (default 10000, the thesis's cap)
+  int relax_restarts = 5;             ///< new random tetrahedra tried after a failed collapse check (default 5)
   int relax_threshold_lowerings = 3;  ///< threshold divided by 10 after a failed orientation check (default 3)
-  unsigned seed = 1;               ///< seed of the random tetrahedron rotation (default 1)
+  unsigned seed = 1;                  ///< seed of the random tetrahedron rotation (default 1)
 
   /// Throws OptionError naming the first field out of range.
   void validate() const;
@@ -120,13 +120,13 @@ struct SphereMapOptions {
 /// Area ratio of triangle t: (spherical area / 4 pi) / (surface area / total surface area).
 struct SphereQuality {
   long triangles = 0;
-  long flipped = 0;        ///< exact orientation det(v0, v1, v2) < 0 (CGAL exact predicate)
-  long degenerate = 0;     ///< exact det = 0, or spherical area below `degenerate_area`
-  double area_sum = 0.0;   ///< sum of signed spherical areas; 4 pi for a bijection
+  long flipped = 0;                                   ///< exact orientation det(v0, v1, v2) < 0 (CGAL exact predicate)
+  long degenerate = 0;                                ///< exact det = 0, or spherical area below `degenerate_area`
+  double area_sum = 0.0;                              ///< sum of signed spherical areas; 4 pi for a bijection
   double area_ratio_min = 0.0, area_ratio_max = 0.0;  ///< over triangles of positive surface area
-  double area_log_mean = 0.0;   ///< mean over those triangles of |log(area ratio)|
-  double angle_error_mean_deg = 0.0;  ///< mean |spherical angle - surface angle| per corner, degrees
-  double angle_error_max_deg = 0.0;   ///< largest of those, degrees
+  double area_log_mean = 0.0;                         ///< mean over those triangles of |log(area ratio)|
+  double angle_error_mean_deg = 0.0;                  ///< mean |spherical angle - surface angle| per corner, degrees
+  double angle_error_max_deg = 0.0;                   ///< largest of those, degrees
   /// True when flipped = degenerate = 0 and |area_sum - 4 pi| < 1e-6.
   bool bijective() const;
 };
@@ -137,25 +137,26 @@ constexpr double degenerate_area = 1e-12 * 4.0 * 3.14159265358979323846;
 
 /// What the map did.
 struct SphereMapReport {
-  std::string method;            ///< "tutte" or "relax"
-  std::string status;            ///< "ok" or "failed"
-  std::string failure;           ///< how it failed, empty when ok
+  std::string method;   ///< "tutte" or "relax"
+  std::string status;   ///< "ok" or "failed"
+  std::string failure;  ///< how it failed, empty when ok
   SphereQuality quality;
-  std::string initial_map;       ///< tutte: "stereographic" (one triangle cut), "tube" (cut end to end) or "progressive"
-  std::vector<std::string> starts_tried;  ///< tutte: starts computed, in order ("tube-prism", "tube-lambert", "stereographic", "progressive")
-  double elongation = 0.0;       ///< tutte: (end-to-end edge distance)^2 / area
-  int reweight_rounds = 0;       ///< tutte: reweighting rounds kept after the lift
-  int cut_face = -1;             ///< tutte: the triangle cut out (it covers the north pole)
-  double lift_margin = 0.0;      ///< tutte: power ratio of the lift (> 1 guarantees orientation)
-  int mobius_steps = 0;          ///< tutte: Moebius centring steps taken
-  double mobius_residual = 0.0;  ///< tutte: |area centroid| after centring
-  int iterations = 0;            ///< balancing sweeps (tutte) or relaxation iterations (relax)
-  int rejected_moves = 0;        ///< tutte: vertex moves refused because a triangle would flip
-  int restarts = 0;              ///< relax: new tetrahedra after failed collapse checks
-  int threshold_lowerings = 0;   ///< relax: threshold lowerings after failed orientation checks
+  std::string initial_map;  ///< tutte: "stereographic" (one triangle cut), "tube" (cut end to end) or "progressive"
+  std::vector<std::string>
+      starts_tried;  ///< tutte: starts computed, in order ("tube-prism", "tube-lambert", "stereographic", "progressive")
+  double elongation = 0.0;           ///< tutte: (end-to-end edge distance)^2 / area
+  int reweight_rounds = 0;           ///< tutte: reweighting rounds kept after the lift
+  int cut_face = -1;                 ///< tutte: the triangle cut out (it covers the north pole)
+  double lift_margin = 0.0;          ///< tutte: power ratio of the lift (> 1 guarantees orientation)
+  int mobius_steps = 0;              ///< tutte: Moebius centring steps taken
+  double mobius_residual = 0.0;      ///< tutte: |area centroid| after centring
+  int iterations = 0;                ///< balancing sweeps (tutte) or relaxation iterations (relax)
+  int rejected_moves = 0;            ///< tutte: vertex moves refused because a triangle would flip
+  int restarts = 0;                  ///< relax: new tetrahedra after failed collapse checks
+  int threshold_lowerings = 0;       ///< relax: threshold lowerings after failed orientation checks
   bool center_moved_inside = false;  ///< relax: Ritter centre was outside and moved in
-  double seconds = 0.0;          ///< wall time of the whole map
-  double solve_seconds = 0.0;    ///< tutte: weights + factorisation + solve
+  double seconds = 0.0;              ///< wall time of the whole map
+  double solve_seconds = 0.0;        ///< tutte: weights + factorisation + solve
   nlohmann::json to_json() const;
 };
 

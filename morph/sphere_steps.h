@@ -16,9 +16,7 @@ namespace fascicle::detail {
 
 /// det(a, b, c) = (a x b) . c written as ((b - a) x (c - a)) . a, which keeps its relative
 /// accuracy for tiny triangles (the differences are exact when the points are close).
-inline double sphere_det(const Vec3& a, const Vec3& b, const Vec3& c) {
-  return (b - a).cross(c - a).dot(a);
-}
+inline double sphere_det(const Vec3& a, const Vec3& b, const Vec3& c) { return (b - a).cross(c - a).dot(a); }
 
 /// Signed area of the geodesic triangle (a, b, c) on the unit sphere (Van Oosterom and
 /// Strackee 1983): 2 atan2(det, 1 + a.b + b.c + c.a). Negative when the triangle is flipped.
@@ -48,8 +46,8 @@ double elongation(const TriangleMesh& mesh, const MeshAdjacency& adjacency, std:
 struct TutteLift {
   std::vector<Vec3> sphere;  ///< #V unit vectors
   int cut_face = -1;
-  double margin = 0.0;       ///< power ratio (> 1: every geodesic triangle keeps its orientation)
-  std::string kind;          ///< "stereographic" or "tube"
+  double margin = 0.0;  ///< power ratio (> 1: every geodesic triangle keeps its orientation)
+  std::string kind;     ///< "stereographic" or "tube"
 };
 
 /// Tutte embedding of the mesh minus one triangle into an equilateral triangle, lifted to the
@@ -115,8 +113,8 @@ struct CollapseSequence {
   /// Faces that take over the area of each collapse's dead faces: dead[i][k] gives half of its
   /// area to receivers[i][2k] (across its edge removed-o) and half to receivers[i][2k+1] (across kept-o).
   std::vector<std::array<int, 4>> receivers;
-  std::array<int, 4> base{};            ///< the tetrahedron's vertices
-  std::array<int, 4> base_faces{};      ///< and its faces
+  std::array<int, 4> base{};        ///< the tetrahedron's vertices
+  std::array<int, 4> base_faces{};  ///< and its faces
 };
 
 /// Simplifies `mesh` (closed, genus 0, checked by check_sphere_topology) by half-edge collapses,
@@ -157,13 +155,12 @@ ProgressiveResult progressive_embedding(const TriangleMesh& mesh, const MeshAdja
 /// halving c whenever a triangle would degenerate or shrink by more than half of what a conformal
 /// map with that centre can do, less 10 % (slivers bending over). Returns the number of steps taken;
 /// `residual` receives the final |c|.
-int mobius_center(const TriangleMesh& mesh, const std::vector<double>& shares,
-                  std::vector<Vec3>& sphere, int max_steps, double tolerance, double& residual);
+int mobius_center(const TriangleMesh& mesh, const std::vector<double>& shares, std::vector<Vec3>& sphere, int max_steps,
+                  double tolerance, double& residual);
 
 /// Flip-free area balancing (see sphere_map.h). Returns sweeps done; counts refused moves.
-int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adjacency,
-                  const std::vector<double>& shares, std::vector<Vec3>& sphere, int max_sweeps,
-                  double tolerance, int& rejected);
+int balance_areas(const TriangleMesh& mesh, const MeshAdjacency& adjacency, const std::vector<double>& shares,
+                  std::vector<Vec3>& sphere, int max_sweeps, double tolerance, int& rejected);
 
 /// The thesis's method; fills the relax fields of `report` and returns the sphere positions.
 std::vector<Vec3> thesis_relax(const TriangleMesh& mesh, const MeshAdjacency& adjacency,

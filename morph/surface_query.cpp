@@ -44,7 +44,7 @@ Vec3 to_vec(const Point& p) { return {p.x(), p.y(), p.z()}; }
 struct RayTree {
   struct Node {
     Vec3 lo, hi;
-    int first = 0, count = 0;  // leaf: triangles order[first, first + count)
+    int first = 0, count = 0;   // leaf: triangles order[first, first + count)
     int left = -1, right = -1;  // inner node: children
   };
   std::vector<Node> nodes;
@@ -249,8 +249,11 @@ std::vector<SurfacePoint> SurfaceQuery::closest_points(const std::vector<Vec3>& 
   const Vec3 extent = (hi - lo).cwiseMax(Vec3::Constant(1e-300));
   std::vector<std::pair<std::uint32_t, std::size_t>> order(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Vec3 u = ((points[i] - lo).cwiseQuotient(extent) * 1023.0).cwiseMax(Vec3::Zero()).cwiseMin(Vec3::Constant(1023.0));
-    order[i] = {morton3(static_cast<std::uint32_t>(u.x()), static_cast<std::uint32_t>(u.y()), static_cast<std::uint32_t>(u.z())), i};
+    const Vec3 u =
+        ((points[i] - lo).cwiseQuotient(extent) * 1023.0).cwiseMax(Vec3::Zero()).cwiseMin(Vec3::Constant(1023.0));
+    order[i] = {morton3(static_cast<std::uint32_t>(u.x()), static_cast<std::uint32_t>(u.y()),
+                        static_cast<std::uint32_t>(u.z())),
+                i};
   }
   std::sort(order.begin(), order.end());
   // Runs of consecutive points along the curve, one task each; a run's first query searches for
@@ -269,7 +272,6 @@ std::vector<SurfacePoint> SurfaceQuery::closest_points(const std::vector<Vec3>& 
   });
   return out;
 }
-
 
 Side SurfaceQuery::side(const Vec3& p) const {
   // Built on first use: most callers only need closest points.
@@ -318,7 +320,8 @@ bool SurfaceQuery::first_hit(const Vec3& p, const Vec3& d, double reach, Vec3& h
       const Vec3& a = mesh.positions[t[0]];
       const Vec3& b = mesh.positions[t[1]];
       const Vec3& c = mesh.positions[t[2]];
-      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
+      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0)
+        continue;
       double t_hit = 0.0;
       if (ray_triangle_hit(p, d, a, b, c, t_hit) && t_hit > 0.0 && t_hit < best) {
         best = t_hit;

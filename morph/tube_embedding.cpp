@@ -47,7 +47,8 @@ Vec3 hexagon_to_sphere(const Eigen::Vector2d& p) {
     double u = 0.0;
     const int i = strip(x, u);
     const double v = (y - h) / (M_PI - 2.0 * h);
-    q = (1.0 - u) * ((1.0 - v) * corner(i, zh) + v * corner(i, -zh)) + u * ((1.0 - v) * corner(i + 1, zh) + v * corner(i + 1, -zh));
+    q = (1.0 - u) * ((1.0 - v) * corner(i, zh) + v * corner(i, -zh)) +
+        u * ((1.0 - v) * corner(i + 1, zh) + v * corner(i + 1, -zh));
   } else {
     // Cap: the ray from the apex through p meets the band's edge at x * h / depth.
     const bool top = y < h;
@@ -82,15 +83,15 @@ struct TubeEmbedder::Impl {
   const TriangleMesh* mesh = nullptr;
   int nv = 0, n_cut = 0, n = 0;
   std::vector<int> path;
-  std::vector<Triangle> cut;                  // the mesh's triangles, one bank on the copies
-  std::vector<Eigen::Vector2d> uv;            // boundary positions (fixed), interior filled per solve
-  std::vector<int> index;                     // cut vertex -> unknown, -1 when fixed
-  Eigen::SparseMatrix<double> weights;        // clamped cotangent weights on the cut mesh
-  std::vector<std::array<int, 2>> edge_faces; // per stored weight: its faces (second -1 on the cut)
-  Eigen::SparseMatrix<double> system;         // Dirichlet Laplacian, pattern fixed
-  std::vector<int> system_slot;               // per stored weight: slot in system, -1 to the rhs
-  std::vector<int> diagonal_slot;             // per unknown: slot of its diagonal
-  ParallelLDLT solver;  // Eigen's SimplicialLDLT, the same bits, subtrees on threads
+  std::vector<Triangle> cut;                   // the mesh's triangles, one bank on the copies
+  std::vector<Eigen::Vector2d> uv;             // boundary positions (fixed), interior filled per solve
+  std::vector<int> index;                      // cut vertex -> unknown, -1 when fixed
+  Eigen::SparseMatrix<double> weights;         // clamped cotangent weights on the cut mesh
+  std::vector<std::array<int, 2>> edge_faces;  // per stored weight: its faces (second -1 on the cut)
+  Eigen::SparseMatrix<double> system;          // Dirichlet Laplacian, pattern fixed
+  std::vector<int> system_slot;                // per stored weight: slot in system, -1 to the rhs
+  std::vector<int> diagonal_slot;              // per unknown: slot of its diagonal
+  ParallelLDLT solver;                         // Eigen's SimplicialLDLT, the same bits, subtrees on threads
 };
 
 TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, const std::array<int, 2>& ends)
@@ -149,7 +150,7 @@ TubeEmbedder::TubeEmbedder(const TriangleMesh& mesh, const MeshAdjacency& adj, c
       p = Eigen::Vector2d(M_PI, h + (along - slant));
     else
       p = Eigen::Vector2d(M_PI, M_PI - h) + (Eigen::Vector2d(0.0, M_PI) - Eigen::Vector2d(M_PI, M_PI - h)) *
-                                                 std::min(1.0, (along - slant - side) / slant);
+                                                std::min(1.0, (along - slant - side) / slant);
     if (i == 0 || i + 1 == m) {
       d.uv[d.path[i]] = Eigen::Vector2d(0.0, i == 0 ? 0.0 : M_PI);
       fixed[d.path[i]] = 1;

@@ -191,8 +191,8 @@ TutteLift tutte_lift(const TriangleMesh& mesh, const MeshAdjacency& adj, bool an
   system.setFromTriplets(entries.begin(), entries.end());
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(system);
   if (solver.info() != Eigen::Success)
-    throw SolverError("sphere map: the Tutte system could not be factorised (mesh has " +
-                      std::to_string(nv) + " vertices)");
+    throw SolverError("sphere map: the Tutte system could not be factorised (mesh has " + std::to_string(nv) +
+                      " vertices)");
   const Eigen::MatrixXd solution = solver.solve(rhs);
   if (solver.info() != Eigen::Success || !solution.allFinite())
     throw SolverError("sphere map: the Tutte solve failed or produced NaN");
@@ -266,8 +266,7 @@ TutteLift tutte_lift(const TriangleMesh& mesh, const MeshAdjacency& adj, bool an
   // The mesh's faces may have come out clockwise on the sphere: mirror if so (mirroring flips
   // every orientation at once).
   double total = 0.0;
-  for (const Triangle& t : mesh.triangles)
-    total += sphere_det(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]);
+  for (const Triangle& t : mesh.triangles) total += sphere_det(lift.sphere[t[0]], lift.sphere[t[1]], lift.sphere[t[2]]);
   if (total < 0.0)
     for (Vec3& p : lift.sphere) p.x() = -p.x();
   return lift;

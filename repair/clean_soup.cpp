@@ -15,8 +15,8 @@ bool ear_clip(const std::vector<Vec3>& points, std::vector<int> poly, std::vecto
   for (std::size_t i = 0; i < poly.size(); ++i) {
     const Vec3& a = points[poly[i]];
     const Vec3& b = points[poly[(i + 1) % poly.size()]];
-    normal += Vec3((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()),
-                   (a.x() - b.x()) * (a.y() + b.y()));
+    normal +=
+        Vec3((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()), (a.x() - b.x()) * (a.y() + b.y()));
   }
   if (normal.norm() == 0.0) return false;
   normal.normalize();
@@ -55,8 +55,7 @@ bool ear_clip(const std::vector<Vec3>& points, std::vector<int> poly, std::vecto
 
 }  // namespace
 
-TriangleMesh clean_soup(const PolygonSoup& soup, const std::vector<int>& representative,
-                        CleanSoupCounts* counts) {
+TriangleMesh clean_soup(const PolygonSoup& soup, const std::vector<int>& representative, CleanSoupCounts* counts) {
   CleanSoupCounts local;
   std::vector<Triangle> triangles;
   triangles.reserve(soup.polygons.size());

@@ -52,8 +52,7 @@ bool triangles_intersect(const TriangleMesh& m, const Triangle& s, const Triangl
       }
   auto P = [&](int idx) { return to_point(m.positions[idx]); };
   if (shared == 0) {
-    return CGAL::do_intersect(K::Triangle_3(P(s[0]), P(s[1]), P(s[2])),
-                              K::Triangle_3(P(t[0]), P(t[1]), P(t[2])));
+    return CGAL::do_intersect(K::Triangle_3(P(s[0]), P(s[1]), P(s[2])), K::Triangle_3(P(t[0]), P(t[1]), P(t[2])));
   }
   if (shared >= 3) return true;  // the same face twice
   if (shared == 2) {
@@ -81,14 +80,13 @@ long count_self_intersections(const TriangleMesh& m, bool first_only) {
   boxes.reserve(m.triangles.size());
   for (std::size_t f = 0; f < m.triangles.size(); ++f) {
     const Triangle& t = m.triangles[f];
-    CGAL::Bbox_3 b = to_point(m.positions[t[0]]).bbox() + to_point(m.positions[t[1]]).bbox() +
-                     to_point(m.positions[t[2]]).bbox();
+    CGAL::Bbox_3 b =
+        to_point(m.positions[t[0]]).bbox() + to_point(m.positions[t[1]]).bbox() + to_point(m.positions[t[2]]).bbox();
     boxes.emplace_back(b, static_cast<int>(f));
   }
   std::vector<std::pair<int, int>> candidates;
-  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const Box& a, const Box& b) {
-    candidates.emplace_back(a.info(), b.info());
-  });
+  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(),
+                                [&](const Box& a, const Box& b) { candidates.emplace_back(a.info(), b.info()); });
   std::atomic<long> count{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 256), [&](const auto& range) {
     long local = 0;
@@ -199,8 +197,7 @@ MeshCensus census_of_triangles(const TriangleMesh& mesh, bool count_intersection
   c.non_manifold_edges = topo.non_manifold_edges;
   c.non_manifold_vertices = topo.non_manifold_vertices;
   c.euler = topo.vertices - topo.edges + c.faces;
-  if (topo.boundary_edges == 0 && topo.non_manifold_edges == 0 && topo.non_manifold_vertices == 0 &&
-      c.faces > 0)
+  if (topo.boundary_edges == 0 && topo.non_manifold_edges == 0 && topo.non_manifold_vertices == 0 && c.faces > 0)
     c.genus = (2 * topo.components - c.euler) / 2;
   c.self_intersections = count_intersections ? count_self_intersections(mesh, false) : 0;
   c.volume = signed_volume(mesh);
@@ -282,8 +279,8 @@ MeshCensus census_of(const PolygonSoup& soup) {
   for (const auto& polygon : soup.polygons) {
     ++faces;
     for (std::size_t k = 2; k < polygon.size(); ++k)
-      tri.triangles.push_back({weld.representative[polygon[0]], weld.representative[polygon[k - 1]],
-                               weld.representative[polygon[k]]});
+      tri.triangles.push_back(
+          {weld.representative[polygon[0]], weld.representative[polygon[k - 1]], weld.representative[polygon[k]]});
   }
   // Triangles with repeated corners carry no topology; drop them from the counting only.
   tri.triangles.erase(std::remove_if(tri.triangles.begin(), tri.triangles.end(),
@@ -305,7 +302,8 @@ std::string verify_genus0(const TriangleMesh& mesh) {
   if (topo.non_manifold_vertices > 0) return std::to_string(topo.non_manifold_vertices) + " non-manifold vertices";
   if (topo.misoriented_edges > 0) return std::to_string(topo.misoriented_edges) + " inconsistently oriented edges";
   const long euler = topo.vertices - topo.edges + static_cast<long>(mesh.triangles.size());
-  if (euler != 2) return "Euler characteristic " + std::to_string(euler) + " (genus " + std::to_string((2 - euler) / 2) + ", need 0)";
+  if (euler != 2)
+    return "Euler characteristic " + std::to_string(euler) + " (genus " + std::to_string((2 - euler) / 2) + ", need 0)";
   for (const Triangle& t : mesh.triangles)
     if (CGAL::collinear(to_point(mesh.positions[t[0]]), to_point(mesh.positions[t[1]]), to_point(mesh.positions[t[2]])))
       return "a face is degenerate (zero area)";

@@ -83,36 +83,36 @@ struct RepairOptions {
 /// Topological and geometric census of a mesh or soup. Soups are counted after exact
 /// duplicate points are merged (an STL file stores each triangle's corners separately).
 struct MeshCensus {
-  long vertices = 0;            ///< referenced vertices
-  long faces = 0;               ///< faces (polygons)
-  long components = 0;          ///< connected components (through shared vertices)
-  long boundary_edges = 0;      ///< edges with one incident face
-  long non_manifold_edges = 0;  ///< edges with more than two incident faces
+  long vertices = 0;               ///< referenced vertices
+  long faces = 0;                  ///< faces (polygons)
+  long components = 0;             ///< connected components (through shared vertices)
+  long boundary_edges = 0;         ///< edges with one incident face
+  long non_manifold_edges = 0;     ///< edges with more than two incident faces
   long non_manifold_vertices = 0;  ///< vertices whose faces do not form one fan (closed mesh only)
-  std::optional<long> genus;    ///< (2C - chi) / 2 when closed and manifold, else unknown
-  long euler = 0;               ///< V - E + F
-  long self_intersections = 0;  ///< intersecting pairs of non-adjacent triangles
-  double volume = 0.0;          ///< signed volume (meaningful when closed)
-  double area = 0.0;            ///< total area
+  std::optional<long> genus;       ///< (2C - chi) / 2 when closed and manifold, else unknown
+  long euler = 0;                  ///< V - E + F
+  long self_intersections = 0;     ///< intersecting pairs of non-adjacent triangles
+  double volume = 0.0;             ///< signed volume (meaningful when closed)
+  double area = 0.0;               ///< total area
 };
 
 /// One pipeline step's effect.
 struct RepairStep {
-  std::string name;     ///< e.g. "weld_vertices"
-  long changed = 0;     ///< elements changed (merged, removed, added, flipped...)
+  std::string name;  ///< e.g. "weld_vertices"
+  long changed = 0;  ///< elements changed (merged, removed, added, flipped...)
   double seconds = 0.0;
-  std::string note;     ///< optional detail
+  std::string note;  ///< optional detail
 };
 
 /// What the repair did; `to_json` gives the report file's content.
 struct RepairReport {
-  std::string status;            ///< "repaired", "unchanged" (already valid) or "failed"
+  std::string status;  ///< "repaired", "unchanged" (already valid) or "failed"
   MeshCensus input, output;
   std::vector<RepairStep> steps;
-  bool fallback_used = false;    ///< the alpha-wrap fallback produced the output
-  std::string fallback_reason;   ///< why local repair was not enough
+  bool fallback_used = false;                  ///< the alpha-wrap fallback produced the output
+  std::string fallback_reason;                 ///< why local repair was not enough
   double wrap_alpha = 0.0, wrap_offset = 0.0;  ///< absolute, when wrapped
-  std::string wrap_worker;       ///< the alpha-wrap worker program that ran, when wrapped
+  std::string wrap_worker;                     ///< the alpha-wrap worker program that ran, when wrapped
   /// Two-sided approximate Hausdorff distance between the output and the input faces it stands
   /// for (the input less the faces dropped with smaller components), relative to the input's
   /// bounding-box diagonal. With the wrap fallback: the whole input.

@@ -44,9 +44,7 @@ using Mesh = CGAL::Surface_mesh<Point>;
 namespace PMP = CGAL::Polygon_mesh_processing;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 TriangleMesh from_cgal(Mesh& mesh) {
   mesh.collect_garbage();
@@ -97,29 +95,31 @@ class RepairPipeline {
     std::vector<std::vector<std::size_t>> polygons;
     polygons.reserve(cleaned.triangles.size());
     for (const Triangle& t : cleaned.triangles)
-      polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]), static_cast<std::size_t>(t[2])});
-    step("orient_soup", [&] {
-      const std::size_t before = points.size();
-      PMP::orient_polygon_soup(points, polygons);
-      return static_cast<long>(points.size() - before);
-    }, "points duplicated to split non-manifold vertices and edges");
+      polygons.push_back(
+          {static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]), static_cast<std::size_t>(t[2])});
+    step(
+        "orient_soup",
+        [&] {
+          const std::size_t before = points.size();
+          PMP::orient_polygon_soup(points, polygons);
+          return static_cast<long>(points.size() - before);
+        },
+        "points duplicated to split non-manifold vertices and edges");
     if (!PMP::is_polygon_soup_a_polygon_mesh(polygons)) throw NeedsWrap{"the oriented soup is not a polygon mesh"};
 
     Mesh mesh;
     PMP::polygon_soup_to_polygon_mesh(points, polygons, mesh);
     if (!CGAL::is_valid_polygon_mesh(mesh)) throw NeedsWrap{"the soup did not build a valid halfedge mesh"};
 
-    step("stitch_borders", [&] { return static_cast<long>(PMP::stitch_borders(mesh)); },
-         "pairs of border edges joined");
+    step(
+        "stitch_borders", [&] { return static_cast<long>(PMP::stitch_borders(mesh)); }, "pairs of border edges joined");
     step("merge_boundary_cycle_vertices", [&] {
       const long before = static_cast<long>(mesh.number_of_vertices());
       PMP::merge_duplicated_vertices_in_boundary_cycles(mesh);
       mesh.collect_garbage();
       return before - static_cast<long>(mesh.number_of_vertices());
     });
-    step("split_non_manifold_vertices", [&] {
-      return static_cast<long>(PMP::duplicate_non_manifold_vertices(mesh));
-    });
+    step("split_non_manifold_vertices", [&] { return static_cast<long>(PMP::duplicate_non_manifold_vertices(mesh)); });
     if (!CGAL::is_valid_polygon_mesh(mesh)) throw NeedsWrap{"stitching left an invalid mesh"};
 
     keep_largest_component(mesh);
@@ -141,11 +141,14 @@ class RepairPipeline {
     keep_largest_component(mesh);
 
     TriangleMesh out = from_cgal(mesh);
-    step("orient_outward", [&] {
-      if (signed_volume(out) >= 0.0) return 0L;
-      for (Triangle& t : out.triangles) std::swap(t[1], t[2]);
-      return static_cast<long>(out.triangles.size());
-    }, "faces reversed so that normals point outward");
+    step(
+        "orient_outward",
+        [&] {
+          if (signed_volume(out) >= 0.0) return 0L;
+          for (Triangle& t : out.triangles) std::swap(t[1], t[2]);
+          return static_cast<long>(out.triangles.size());
+        },
+        "faces reversed so that normals point outward");
     return out;
   }
 
@@ -174,10 +177,13 @@ class RepairPipeline {
         return std::nullopt;
       }
       std::optional<TriangleMesh> result;
-      step("alpha_wrap", [&] {
-        result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left, worker, options_.wrap_memory_mb);
-        return result ? static_cast<long>(result->triangles.size()) : 0L;
-      }, "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
+      step(
+          "alpha_wrap",
+          [&] {
+            result = detail::alpha_wrap_with_time_limit(cleaned, alpha, offset, left, worker, options_.wrap_memory_mb);
+            return result ? static_cast<long>(result->triangles.size()) : 0L;
+          },
+          "alpha " + std::to_string(alpha) + ", offset " + std::to_string(offset));
       last_wrap_seconds = report_.steps.back().seconds;
       const std::size_t wrap_step = report_.steps.size() - 1;
       if (!result) {
@@ -206,7 +212,8 @@ class RepairPipeline {
       if (stray > options_.wrap_max_distance) {
         last_failure = "wrap at alpha " + std::to_string(alpha) + " lies " + std::to_string(stray * 100.0) +
                        "% of the diagonal away from the input (it bridges a hole or handle)";
-        report_.steps[wrap_step].note += ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
+        report_.steps[wrap_step].note +=
+            ": strays " + std::to_string(stray * 100.0) + "% of the diagonal from the input";
         spdlog::debug("{}", last_failure);
         return std::nullopt;
       }
@@ -222,8 +229,8 @@ class RepairPipeline {
         // Halving alpha makes about four times the faces and takes at least four times as long:
         // stop refining when that would not fit in what is left of the budget.
         if (4.0 * last_wrap_seconds > options_.wrap_seconds - seconds_since(wrap_start)) {
-          report_.steps.push_back({"alpha_wrap_refinement_stopped", 0, 0.0,
-                                   "finer levels skipped: they would not fit in the time budget"});
+          report_.steps.push_back(
+              {"alpha_wrap_refinement_stopped", 0, 0.0, "finer levels skipped: they would not fit in the time budget"});
           break;
         }
       }
@@ -242,7 +249,8 @@ class RepairPipeline {
       if (!best && seconds_since(wrap_start) >= options_.wrap_seconds) break;
     }
     if (!best)
-      throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure, ErrorCode::repair_failed);
+      throw TopologyError("cannot bring the mesh to a closed genus-0 surface: " + last_failure,
+                          ErrorCode::repair_failed);
     report_.fallback_used = true;
     report_.wrap_alpha = best_alpha;
     report_.wrap_offset = best_alpha * options_.wrap_offset_ratio;
@@ -268,8 +276,7 @@ class RepairPipeline {
       area[fcc[f]] += a;
       total += a;
     }
-    const std::size_t largest =
-        static_cast<std::size_t>(std::max_element(area.begin(), area.end()) - area.begin());
+    const std::size_t largest = static_cast<std::size_t>(std::max_element(area.begin(), area.end()) - area.begin());
     const double share = total > 0.0 ? area[largest] / total : 0.0;
     if (share < options_.min_largest_share)
       throw NeedsWrap{"the mesh is in " + std::to_string(count) + " pieces and the largest holds only " +
@@ -295,22 +302,26 @@ class RepairPipeline {
   }
 
   void fill_holes(Mesh& mesh) {
-    step("fill_holes", [&] {
-      std::vector<Mesh::Halfedge_index> cycles;
-      PMP::extract_boundary_cycles(mesh, std::back_inserter(cycles));
-      long added = 0;
-      for (auto h : cycles) {
-        std::vector<Mesh::Face_index> patch;
-        std::vector<Mesh::Vertex_index> new_vertices;
-        if (options_.fair_holes) {
-          PMP::triangulate_refine_and_fair_hole(mesh, h, std::back_inserter(patch), std::back_inserter(new_vertices));
-        } else {
-          PMP::triangulate_hole(mesh, h, std::back_inserter(patch));
-        }
-        added += static_cast<long>(patch.size());
-      }
-      return added;
-    }, "faces added to close holes");
+    step(
+        "fill_holes",
+        [&] {
+          std::vector<Mesh::Halfedge_index> cycles;
+          PMP::extract_boundary_cycles(mesh, std::back_inserter(cycles));
+          long added = 0;
+          for (auto h : cycles) {
+            std::vector<Mesh::Face_index> patch;
+            std::vector<Mesh::Vertex_index> new_vertices;
+            if (options_.fair_holes) {
+              PMP::triangulate_refine_and_fair_hole(mesh, h, std::back_inserter(patch),
+                                                    std::back_inserter(new_vertices));
+            } else {
+              PMP::triangulate_hole(mesh, h, std::back_inserter(patch));
+            }
+            added += static_cast<long>(patch.size());
+          }
+          return added;
+        },
+        "faces added to close holes");
   }
 
   void remove_self_intersections(Mesh& mesh) {
@@ -322,19 +333,22 @@ class RepairPipeline {
     // CT folds are mostly crumpled surface: first untangle them by smoothing the vertices of the
     // intersecting faces towards their neighbours' centroid (a small, local move), and only where
     // that fails cut the region out and refill it (PMP::experimental::remove_self_intersections).
-    step("untangle_self_intersections", [&] { return untangle_by_smoothing(mesh); },
-         "vertices smoothed to undo folds");
+    step(
+        "untangle_self_intersections", [&] { return untangle_by_smoothing(mesh); }, "vertices smoothed to undo folds");
     if (!PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh)) return;
-    step("remove_self_intersections", [&] {
-      std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
-      PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
-      const long before = static_cast<long>(pairs.size());
-      PMP::experimental::remove_self_intersections(mesh, PMP::parameters::preserve_genus(false));
-      mesh.collect_garbage();
-      pairs.clear();
-      PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
-      return before - static_cast<long>(pairs.size());
-    }, "intersecting face pairs resolved by removing and refilling their region");
+    step(
+        "remove_self_intersections",
+        [&] {
+          std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+          PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
+          const long before = static_cast<long>(pairs.size());
+          PMP::experimental::remove_self_intersections(mesh, PMP::parameters::preserve_genus(false));
+          mesh.collect_garbage();
+          pairs.clear();
+          PMP::self_intersections<CGAL::Parallel_if_available_tag>(mesh, std::back_inserter(pairs));
+          return before - static_cast<long>(pairs.size());
+        },
+        "intersecting face pairs resolved by removing and refilling their region");
     if (!CGAL::is_valid_polygon_mesh(mesh) || !CGAL::is_closed(mesh))
       throw NeedsWrap{"removing self-intersections left an open or invalid mesh"};
     if (PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
@@ -359,7 +373,8 @@ class RepairPipeline {
       for (int ring = 0; ring < 1 + round / 4; ++ring) {
         std::vector<std::uint32_t> grow(region.begin(), region.end());
         for (auto vi : grow)
-          for (auto w : CGAL::vertices_around_target(mesh.halfedge(Mesh::Vertex_index(vi)), mesh)) region.insert(w.idx());
+          for (auto w : CGAL::vertices_around_target(mesh.halfedge(Mesh::Vertex_index(vi)), mesh))
+            region.insert(w.idx());
       }
       std::vector<std::pair<Mesh::Vertex_index, Point>> update;
       for (auto vi : region) {
@@ -382,8 +397,10 @@ class RepairPipeline {
     // Accept only an untangling that stayed local: no vertex moved farther than
     // untangle_limit of the diagonal (a deep fold is better cut out than smeared).
     double farthest = 0.0;
-    for (const auto& [v, p] : original) farthest = std::max(farthest, std::sqrt(CGAL::squared_distance(p, mesh.point(v))));
-    if (farthest <= options_.untangle_limit * diagonal_ && !PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
+    for (const auto& [v, p] : original)
+      farthest = std::max(farthest, std::sqrt(CGAL::squared_distance(p, mesh.point(v))));
+    if (farthest <= options_.untangle_limit * diagonal_ &&
+        !PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
       return static_cast<long>(moved.size());
     for (const auto& [v, p] : original) mesh.point(v) = p;  // give up: leave it to the cut-and-fill
     return 0;
@@ -420,12 +437,14 @@ class RepairPipeline {
     TriangleMesh compact;
     for (Triangle t : result.triangles) {
       for (int& v : t) {
-        if (index[v] < 0) index[v] = static_cast<int>(compact.positions.size()), compact.positions.push_back(wrapped.positions[v]);
+        if (index[v] < 0)
+          index[v] = static_cast<int>(compact.positions.size()), compact.positions.push_back(wrapped.positions[v]);
         v = index[v];
       }
       compact.triangles.push_back(t);
     }
-    report_.steps.push_back({"keep_largest_shell", static_cast<long>(wrapped.triangles.size() - compact.triangles.size()), 0.0,
+    report_.steps.push_back({"keep_largest_shell",
+                             static_cast<long>(wrapped.triangles.size() - compact.triangles.size()), 0.0,
                              std::to_string(shells.size() - 1) + " smaller wrapped shells removed (faces counted)"});
     return compact;
   }
@@ -481,10 +500,13 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
   if (!(diagonal > 0.0)) throw TopologyError("all points coincide: nothing to repair", ErrorCode::repair_failed);
 
   WeldResult weld;
-  pipeline.step("weld_vertices", [&] {
-    weld = weld_vertices(soup.points, options.weld_tolerance * diagonal);
-    return weld.merged;
-  }, "points merged into a neighbour within the weld tolerance");
+  pipeline.step(
+      "weld_vertices",
+      [&] {
+        weld = weld_vertices(soup.points, options.weld_tolerance * diagonal);
+        return weld.merged;
+      },
+      "points merged into a neighbour within the weld tolerance");
   TriangleMesh cleaned;
   CleanSoupCounts counts;
   pipeline.step("triangulate_polygons", [&] {
@@ -516,9 +538,10 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
   report.output = detail::census_of_triangles(result.mesh, false);
   const TriangleMesh kept = report.fallback_used ? cleaned : kept_part(cleaned, pipeline.dropped_);
   report.hausdorff = detail::hausdorff_distance(kept, result.mesh, options.hausdorff_samples) / diagonal;
-  report.hausdorff_whole_input = pipeline.dropped_.empty() || report.fallback_used
-                                     ? report.hausdorff
-                                     : detail::hausdorff_distance(cleaned, result.mesh, options.hausdorff_samples) / diagonal;
+  report.hausdorff_whole_input =
+      pipeline.dropped_.empty() || report.fallback_used
+          ? report.hausdorff
+          : detail::hausdorff_distance(cleaned, result.mesh, options.hausdorff_samples) / diagonal;
   report.input = input_census.get();
   report.kept_area_share = report.input.area > 0.0 ? report.output.area / report.input.area : 0.0;
   report.steps.push_back({"verify", 0, seconds_since(tv), "census of the output and Hausdorff distance"});

@@ -13,7 +13,8 @@ void RepairOptions::validate() const {
   auto bad = [](const std::string& field, double value, const std::string& range) {
     throw OptionError("repair option " + field + " = " + std::to_string(value) + " is out of range (" + range + ")");
   };
-  if (!(weld_tolerance >= 0.0 && weld_tolerance < 0.01)) bad("weld_tolerance", weld_tolerance, "0 <= t < 0.01 of the diagonal");
+  if (!(weld_tolerance >= 0.0 && weld_tolerance < 0.01))
+    bad("weld_tolerance", weld_tolerance, "0 <= t < 0.01 of the diagonal");
   if (!(min_largest_share > 0.0 && min_largest_share <= 1.0)) bad("min_largest_share", min_largest_share, "0 < s <= 1");
   if (!(untangle_limit >= 0.0 && untangle_limit <= 0.1)) bad("untangle_limit", untangle_limit, "0 <= l <= 0.1");
   if (!(wrap_alpha > 0.0 && wrap_alpha <= 0.5)) bad("wrap_alpha", wrap_alpha, "0 < alpha <= 0.5 of the diagonal");
@@ -23,7 +24,8 @@ void RepairOptions::validate() const {
   if (max_wrap_faces < 1000) bad("max_wrap_faces", static_cast<double>(max_wrap_faces), ">= 1000");
   if (!(wrap_seconds > 0.0)) bad("wrap_seconds", wrap_seconds, "> 0");
   if (hausdorff_samples < 0) bad("hausdorff_samples", hausdorff_samples, ">= 0");
-  if (wrap_memory_mb != 0 && wrap_memory_mb < 64) bad("wrap_memory_mb", static_cast<double>(wrap_memory_mb), "0 (none) or >= 64");
+  if (wrap_memory_mb != 0 && wrap_memory_mb < 64)
+    bad("wrap_memory_mb", static_cast<double>(wrap_memory_mb), "0 (none) or >= 64");
 }
 
 namespace {

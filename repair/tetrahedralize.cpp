@@ -34,7 +34,8 @@ using Criteria = CGAL::Mesh_criteria_3<Triangulation>;
 void TetrahedralizeOptions::validate() const {
   const auto positive = [](const char* field, double value) {
     if (!(value > 0.0) || !std::isfinite(value))
-      throw OptionError(std::string("tetrahedralize: ") + field + " must be > 0 and finite, got " + std::to_string(value));
+      throw OptionError(std::string("tetrahedralize: ") + field + " must be > 0 and finite, got " +
+                        std::to_string(value));
   };
   positive("cell_size", cell_size);
   positive("facet_size", facet_size);
@@ -60,7 +61,8 @@ nlohmann::json TetrahedralizeReport::to_json() const {
   return {{"vertices", vertices}, {"tets", tets}, {"boundary_vertices", boundary_vertices}, {"seconds", seconds}};
 }
 
-TetMesh tetrahedralize(const TriangleMesh& surface, const TetrahedralizeOptions& options, TetrahedralizeReport* report) {
+TetMesh tetrahedralize(const TriangleMesh& surface, const TetrahedralizeOptions& options,
+                       TetrahedralizeReport* report) {
   options.validate();
   const auto start = std::chrono::steady_clock::now();
   if (surface.triangles.empty()) throw TopologyError("tetrahedralize: the surface has no triangles");
@@ -93,7 +95,8 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetrahedralizeOptions&
     return it->second;
   };
   for (auto c = complex.cells_in_complex_begin(); c != complex.cells_in_complex_end(); ++c)
-    out.tets.push_back({index_of(c->vertex(0)), index_of(c->vertex(1)), index_of(c->vertex(2)), index_of(c->vertex(3))});
+    out.tets.push_back(
+        {index_of(c->vertex(0)), index_of(c->vertex(1)), index_of(c->vertex(2)), index_of(c->vertex(3))});
   out.boundary.assign(out.positions.size(), 0);
   for (auto f = complex.facets_in_complex_begin(); f != complex.facets_in_complex_end(); ++f)
     for (int i = 0; i < 4; ++i)
@@ -101,12 +104,14 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetrahedralizeOptions&
         const auto found = index.find(f->first->vertex(i));
         if (found != index.end()) out.boundary[static_cast<std::size_t>(found->second)] = 1;
       }
-  if (out.tets.empty()) throw TopologyError("tetrahedralize: the surface bounds no volume the mesh generator could fill");
+  if (out.tets.empty())
+    throw TopologyError("tetrahedralize: the surface bounds no volume the mesh generator could fill");
   // Cells of a CGAL triangulation are positively oriented; make sure of it where rounding of
   // the weighted points could say otherwise.
   for (Tetrahedron& t : out.tets) {
     const Vec3& a = out.positions[static_cast<std::size_t>(t[0])];
-    if ((out.positions[static_cast<std::size_t>(t[1])] - a).cross(out.positions[static_cast<std::size_t>(t[2])] - a)
+    if ((out.positions[static_cast<std::size_t>(t[1])] - a)
+            .cross(out.positions[static_cast<std::size_t>(t[2])] - a)
             .dot(out.positions[static_cast<std::size_t>(t[3])] - a) < 0.0)
       std::swap(t[2], t[3]);
   }

@@ -14,10 +14,10 @@ namespace fascicle {
 
 /// Sizes of the tetrahedra, in the surface's units.
 struct TetrahedralizeOptions {
-  double cell_size = 1.0;        ///< largest circumradius of a tetrahedron, > 0 (default 1)
-  double facet_size = 1.0;       ///< largest circumradius of a boundary facet's Delaunay ball, > 0 (default 1)
-  double facet_distance = 0.1;   ///< largest distance of a boundary facet from the surface, > 0 (default 0.1)
-  double facet_angle_deg = 25.0; ///< smallest angle of a boundary facet, degrees, in (0, 30] (default 25)
+  double cell_size = 1.0;          ///< largest circumradius of a tetrahedron, > 0 (default 1)
+  double facet_size = 1.0;         ///< largest circumradius of a boundary facet's Delaunay ball, > 0 (default 1)
+  double facet_distance = 0.1;     ///< largest distance of a boundary facet from the surface, > 0 (default 0.1)
+  double facet_angle_deg = 25.0;   ///< smallest angle of a boundary facet, degrees, in (0, 30] (default 25)
   double radius_edge_ratio = 3.0;  ///< largest circumradius-to-shortest-edge ratio of a tetrahedron, >= 2 (default 3)
   /// Throws OptionError naming the first field out of range.
   void validate() const;

@@ -23,7 +23,10 @@ struct UnionFind {
     a = find(a);
     b = find(b);
     if (a == b) return;
-    if (a < b) parent[b] = a; else parent[a] = b;  // lowest index represents the group
+    if (a < b)
+      parent[b] = a;
+    else
+      parent[a] = b;  // lowest index represents the group
   }
 };
 
@@ -67,8 +70,7 @@ WeldResult weld_vertices(const std::vector<Vec3>& points, double tolerance) {
     std::unordered_map<Cell, std::vector<int>, CellHash> grid;
     grid.reserve(n);
     auto cell_of = [&](const Vec3& p) {
-      return Cell{static_cast<std::int64_t>(std::floor(p[0] * inv)),
-                  static_cast<std::int64_t>(std::floor(p[1] * inv)),
+      return Cell{static_cast<std::int64_t>(std::floor(p[0] * inv)), static_cast<std::int64_t>(std::floor(p[1] * inv)),
                   static_cast<std::int64_t>(std::floor(p[2] * inv))};
     };
     for (std::size_t i = 0; i < n; ++i) {

@@ -58,8 +58,8 @@ void append(std::vector<char>& bytes, const T* values, std::size_t count) {
 std::string find_wrap_worker(const std::string& explicit_path) {
   if (!explicit_path.empty()) {
     if (executable(explicit_path)) return explicit_path;
-    throw InputError(ErrorCode::file_missing, "alpha wrap worker " + explicit_path +
-                                                  " does not exist or is not executable");
+    throw InputError(ErrorCode::file_missing,
+                     "alpha wrap worker " + explicit_path + " does not exist or is not executable");
   }
   if (const char* variable = std::getenv("FASCICLE_WRAP_WORKER"); variable != nullptr && *variable != '\0') {
     if (executable(variable)) return variable;
@@ -83,7 +83,7 @@ std::string find_wrap_worker(const std::string& explicit_path) {
 }
 
 std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup, double alpha, double offset,
-                                                        double seconds, const std::string& worker, long memory_mb) {
+                                                       double seconds, const std::string& worker, long memory_mb) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   std::vector<char> request;
   request.reserve(64 + soup.positions.size() * sizeof(Vec3) + soup.triangles.size() * sizeof(Triangle));
@@ -97,7 +97,8 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
 
   int pair[2];
   if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, pair) != 0)
-    throw Error(ErrorCode::internal, std::string("alpha wrap: cannot make a socket for the worker: ") + std::strerror(errno));
+    throw Error(ErrorCode::internal,
+                std::string("alpha wrap: cannot make a socket for the worker: ") + std::strerror(errno));
   Descriptor ours{pair[0]}, theirs{pair[1]};
   SpawnOptions spawn;
   spawn.argv = {worker};
@@ -162,8 +163,7 @@ std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup,
   if (header[0] == kResultError) {
     const std::size_t length = std::min<std::size_t>(header[1], response.size() - 2 * sizeof(std::uint64_t));
     std::string message(response.data() + 2 * sizeof(std::uint64_t), length);
-    if (message == "out of memory" && memory_mb > 0)
-      message += " (memory limit " + std::to_string(memory_mb) + " MiB)";
+    if (message == "out of memory" && memory_mb > 0) message += " (memory limit " + std::to_string(memory_mb) + " MiB)";
     throw failed(message);
   }
   if (header[0] != kResultMesh || response.size() < sizeof(header)) throw failed("it sent a malformed result");

@@ -207,9 +207,12 @@ std::string try_context(EGLDisplay display, const GlContextOptions& options, EGL
     if (!eglChooseConfig(display, attributes, &config, 1, &found) || found < 1)
       return release("no EGL config renders OpenGL");
   }
-  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION, options.major,
-                                       EGL_CONTEXT_MINOR_VERSION, options.minor,
-                                       EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                       options.major,
+                                       EGL_CONTEXT_MINOR_VERSION,
+                                       options.minor,
+                                       EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                       EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
                                        EGL_NONE};
   context = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attributes);
   if (context == EGL_NO_CONTEXT)
@@ -270,8 +273,8 @@ GlContext::GlContext(const GlContextOptions& options) : state_(std::make_unique<
   }
   if (!ok)
     throw GpuError("EGL: no headless OpenGL " + std::to_string(options.major) + "." + std::to_string(options.minor) +
-                   " core context" + (log.empty() ? std::string(" (no EGL device or surfaceless platform)")
-                                                  : " (" + log + ")"));
+                   " core context" +
+                   (log.empty() ? std::string(" (no EGL device or surfaceless platform)") : " (" + log + ")"));
   pin_new_objects(before);
 
   glewExperimental = GL_TRUE;
@@ -340,8 +343,7 @@ void allocate_storage_buffer(unsigned buffer, std::size_t bytes, const void* dat
 void check_gl(const char* where) {
   const GLenum e = glGetError();
   if (e == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
+  while (glGetError() != GL_NO_ERROR) {}
   std::string what;
   switch (e) {
     case GL_OUT_OF_MEMORY: what = "out of GPU memory (GL_OUT_OF_MEMORY)"; break;
@@ -365,10 +367,14 @@ unsigned compile_program_sources(const std::vector<std::pair<std::string, std::s
   for (const auto& [name, text] : sources) {
     const std::string ext = name.substr(name.find_last_of('.') + 1);
     GLenum stage = 0;
-    if (ext == "comp") stage = GL_COMPUTE_SHADER;
-    else if (ext == "vert") stage = GL_VERTEX_SHADER;
-    else if (ext == "geom") stage = GL_GEOMETRY_SHADER;
-    else if (ext == "frag") stage = GL_FRAGMENT_SHADER;
+    if (ext == "comp")
+      stage = GL_COMPUTE_SHADER;
+    else if (ext == "vert")
+      stage = GL_VERTEX_SHADER;
+    else if (ext == "geom")
+      stage = GL_GEOMETRY_SHADER;
+    else if (ext == "frag")
+      stage = GL_FRAGMENT_SHADER;
     if (!stage) {
       cleanup();
       throw GpuError("shader " + name + ": unknown stage (use .comp, .vert, .geom or .frag)");

@@ -39,8 +39,8 @@ bool hardware_gl_device_available();
 
 /// Options of GlContext.
 struct GlContextOptions {
-  int device = -1;  ///< EGL device index (list_gl_devices); -1 = first hardware device, else the
-                    ///< surfaceless software platform (default -1)
+  int device = -1;             ///< EGL device index (list_gl_devices); -1 = first hardware device, else the
+                               ///< surfaceless software platform (default -1)
   bool allow_software = true;  ///< accept a software renderer when no hardware device works
                                ///< (default true: every test machine has only llvmpipe)
   int major = 4, minor = 3;    ///< least OpenGL core version, >= 4.3 (compute shaders; default 4.3)

@@ -246,8 +246,10 @@ class ComputeVerlet final : public GpuSpringSolver {
           sum += k;
           ++count;
         }
-        if (count == 0 || hi - lo > 1e-12 * hi) uniform_ = false;
-        else k_uniform_[d] = static_cast<float>(sum / count);
+        if (count == 0 || hi - lo > 1e-12 * hi)
+          uniform_ = false;
+        else
+          k_uniform_[d] = static_cast<float>(sum / count);
       }
       if (!uniform_) {
         std::vector<float> k(static_cast<std::size_t>(directions_) * n_);
@@ -354,8 +356,7 @@ class ComputeVerlet final : public GpuSpringSolver {
     std::vector<float> data(4 * n_);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, x_[current_].id);
-    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(data.size() * sizeof(float)),
-                       data.data());
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data());
     check_gl("position readback");
     return vec4_to_positions(data, n_, centre_);
   }
@@ -441,8 +442,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     height_ = static_cast<int>((n_ + width_ - 1) / width_);
     if (height_ > max_size)
       throw GpuError("OpenGL: " + std::to_string(n_) + " points need a " + std::to_string(width_) + " x " +
-                     std::to_string(height_) + " texture, above the device's largest (" +
-                     std::to_string(max_size) + ")");
+                     std::to_string(height_) + " texture, above the device's largest (" + std::to_string(max_size) +
+                     ")");
     height_ = std::max(height_, 1);
     const std::size_t texels = static_cast<std::size_t>(width_) * height_;
     std::vector<float> x(4 * texels, 0.0f);
@@ -489,8 +490,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     check_gl("gl-gs spring buffers");
     bytes_ += ends.size() * sizeof(GLint) + params.size() * sizeof(float);
 
-    force_program_ = std::make_unique<Program>(
-        compile_program({"spring_force.vert", "spring_force.geom", "spring_force.frag"}));
+    force_program_ =
+        std::make_unique<Program>(compile_program({"spring_force.vert", "spring_force.geom", "spring_force.frag"}));
     integrate_program_ = std::make_unique<Program>(compile_program({"fullscreen.vert", "verlet_integrate.frag"}));
     residual_program_ = std::make_unique<Program>(compile_program({"force_residual.comp"}));
     energy_program_ = std::make_unique<Program>(compile_program({"verlet_energy.comp"}, "#define TEXTURES 1\n"));
@@ -638,8 +639,8 @@ class GeometryShaderVerlet final : public GpuSpringSolver {
     const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     if (status != GL_FRAMEBUFFER_COMPLETE)
-      throw GpuError("OpenGL: an RGBA32F framebuffer is not complete on this device (status " +
-                     std::to_string(status) + ")");
+      throw GpuError("OpenGL: an RGBA32F framebuffer is not complete on this device (status " + std::to_string(status) +
+                     ")");
   }
   static void bind_texture(int unit, const Texture& texture) {
     glActiveTexture(GL_TEXTURE0 + unit);
@@ -688,8 +689,9 @@ std::unique_ptr<GpuSpringSolver> make_gpu_solver(const GlContext& context, const
   springs::validate(system);
   const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
   if (momentum && (options.static_method != springs::StaticMethod::momentum || gpu_options.backend != GpuBackend::gl))
-    throw OptionError("solver: on the GPU the static solver runs only as --static-method momentum on --backend gl; "
-                      "use --backend cpu for the others");
+    throw OptionError(
+        "solver: on the GPU the static solver runs only as --static-method momentum on --backend gl; "
+        "use --backend cpu for the others");
   context.make_current();
   if (gpu_options.backend == GpuBackend::gl_gs) {
     if (system.positions.empty()) throw OptionError("system: no point to settle");
@@ -708,8 +710,10 @@ Readback read_positions(GpuSpringSolver& solver, bool pbo) {
   solver.finish();
   const auto t0 = clock_type::now();
   Readback out;
-  if (auto* gs = dynamic_cast<GeometryShaderVerlet*>(&solver)) out.positions = gs->read(pbo);
-  else out.positions = solver.positions();
+  if (auto* gs = dynamic_cast<GeometryShaderVerlet*>(&solver))
+    out.positions = gs->read(pbo);
+  else
+    out.positions = solver.positions();
   out.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   return out;
 }
@@ -752,8 +756,8 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
     for (const Spring& spring : system.springs) rest += spring.rest;
     if (!system.springs.empty()) rest /= static_cast<double>(system.springs.size());
     const double half_extent = 0.5 * bounding_box(system.positions).diagonal();
-    motion_floor = std::max(gpu_options.stall_motion * rest,
-                            64.0 * std::numeric_limits<float>::epsilon() * half_extent);
+    motion_floor =
+        std::max(gpu_options.stall_motion * rest, 64.0 * std::numeric_limits<float>::epsilon() * half_extent);
   }
   // Largest move of a free point between two readbacks.
   auto largest_move = [&](const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
@@ -775,7 +779,8 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       if (report.iterations == next_energy) {
         next_energy += options.energy_interval;
         const double e = solver->energy();
-        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy) diverged(report.iterations, e, initial_energy);
+        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy)
+          diverged(report.iterations, e, initial_energy);
       }
       if (report.iterations != next_check && report.iterations < options.max_iterations) continue;
       next_check = report.iterations + gpu_options.check_interval;
@@ -847,8 +852,9 @@ BackendChoice choose_backend(const std::string& requested, springs::SolverKind s
   if (requested == "cpu") return {"cpu", "requested (--backend cpu)"};
   if (requested == "gl" || requested == "gl-gs") {
     if (!verlet && requested == "gl-gs")
-      throw OptionError("backend: gl-gs runs the Verlet solver only; use --backend gl (static method momentum), "
-                        "cpu or auto for --solver static");
+      throw OptionError(
+          "backend: gl-gs runs the Verlet solver only; use --backend gl (static method momentum), "
+          "cpu or auto for --solver static");
     return {requested, "requested (--backend " + requested + ")"};
   }
   if (requested != "auto")

@@ -54,14 +54,14 @@ const char* gpu_backend_name(GpuBackend backend);
 /// Options of the GPU settle (beside springs::SettleOptions).
 struct GpuSettleOptions {
   GpuBackend backend = GpuBackend::gl;  ///< method (default gl)
-  int check_interval = 32;  ///< iterations between residual checks on the GPU, >= 1 (default 32)
-  bool pbo_readback = true; ///< gl-gs: read the positions back through a pixel buffer object
-                            ///< (default true: the thesis measured it 25 % faster)
-  int texture_width = 2048; ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
-  int stall_checks = 16;    ///< stall suspected after this many checks with no new minimum below 0.99 of
-                            ///< the best, >= 1 (default 16: float32 bottoms out near 1e-5 relative)
-  double stall_motion = 1e-4;  ///< stall confirmed only if no free point moved more than this share of
-                               ///< the rest length, >= 0 (default 1e-4: a swinging slow mode also stalls)
+  int check_interval = 32;              ///< iterations between residual checks on the GPU, >= 1 (default 32)
+  bool pbo_readback = true;             ///< gl-gs: read the positions back through a pixel buffer object
+                                        ///< (default true: the thesis measured it 25 % faster)
+  int texture_width = 2048;             ///< gl-gs: texels per row of the point textures, 1..16384 (default 2048)
+  int stall_checks = 16;                ///< stall suspected after this many checks with no new minimum below 0.99 of
+                                        ///< the best, >= 1 (default 16: float32 bottoms out near 1e-5 relative)
+  double stall_motion = 1e-4;           ///< stall confirmed only if no free point moved more than this share of
+                                        ///< the rest length, >= 0 (default 1e-4: a swinging slow mode also stalls)
   bool polish = true;  ///< finish a stalled float32 solve on the CPU in double, momentum method (default
                        ///< true: far-stretched springs stop float32 short of the tolerance, changing folds)
   /// Throws OptionError naming the bad field.
@@ -122,19 +122,19 @@ Readback read_positions(GpuSpringSolver& solver, bool pbo);
 
 /// What settle_gpu did: the CPU report's fields plus the GPU's.
 struct GpuSettleReport : springs::SettleReport {
-  std::string renderer;        ///< GL_RENDERER
-  std::string gl_version;      ///< GL_VERSION
-  bool hardware = false;       ///< false for a software renderer
+  std::string renderer;           ///< GL_RENDERER
+  std::string gl_version;         ///< GL_VERSION
+  bool hardware = false;          ///< false for a software renderer
   double readback_seconds = 0.0;  ///< final readback
-  std::size_t gpu_bytes = 0;   ///< buffers and textures
-  bool stalled = false;        ///< stopped because the residual no longer fell (stall_checks)
+  std::size_t gpu_bytes = 0;      ///< buffers and textures
+  bool stalled = false;           ///< stopped because the residual no longer fell (stall_checks)
   // The CPU polish (GpuSettleOptions::polish). After one, residual and converged are the
   // polish's; iterations, seconds, setup_seconds, residual_history, solver and dt stay the GPU's.
-  double gpu_residual = 0.0;   ///< relative residual where the GPU stopped (before any polish)
-  bool polished = false;       ///< the CPU polish ran (it may take 0 iterations: the double
-                               ///< residual at the GPU's positions can already be within tolerance)
-  int polish_iterations = 0;   ///< its iterations
-  double polish_seconds = 0.0; ///< its wall time, set-up included
+  double gpu_residual = 0.0;    ///< relative residual where the GPU stopped (before any polish)
+  bool polished = false;        ///< the CPU polish ran (it may take 0 iterations: the double
+                                ///< residual at the GPU's positions can already be within tolerance)
+  int polish_iterations = 0;    ///< its iterations
+  double polish_seconds = 0.0;  ///< its wall time, set-up included
 };
 
 /// Settles `system` on the GPU: runs blocks of check_interval iterations, measures the residual

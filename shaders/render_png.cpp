@@ -28,9 +28,7 @@ void append_bytes(png_structp png, png_bytep data, png_size_t size) {
   PngSink* sink = static_cast<PngSink*>(png_get_io_ptr(png));
   try {
     sink->out->append(reinterpret_cast<const char*>(data), size);
-  } catch (...) {
-    png_error(png, "out of memory");
-  }
+  } catch (...) { png_error(png, "out of memory"); }
 }
 
 void no_flush(png_structp) {}

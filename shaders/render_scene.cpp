@@ -111,9 +111,12 @@ double hue_degrees(std::uint8_t r, std::uint8_t g, std::uint8_t b) {
   if (hi == lo) return 0.0;
   const double d = hi - lo;
   double h;
-  if (hi == r) h = (g - b) / d;
-  else if (hi == g) h = 2.0 + (b - r) / d;
-  else h = 4.0 + (r - g) / d;
+  if (hi == r)
+    h = (g - b) / d;
+  else if (hi == g)
+    h = 2.0 + (b - r) / d;
+  else
+    h = 4.0 + (r - g) / d;
   h *= 60.0;
   return h < 0.0 ? h + 360.0 : h;
 }
@@ -132,8 +135,7 @@ void add_fibres(RenderScene& scene, const Polylines& lines, float width_px) {
     for (std::size_t i = 1; i < line.size(); ++i) s[i] = s[i - 1] + (line[i] - line[i - 1]).norm();
     const double length = s.back();
     for (std::size_t i = 0; i < line.size(); ++i)
-      out.colours.push_back(fibre_colour(length > 0.0 ? s[i] / length
-                                                      : static_cast<double>(i) / (line.size() - 1)));
+      out.colours.push_back(fibre_colour(length > 0.0 ? s[i] / length : static_cast<double>(i) / (line.size() - 1)));
     first += line.front();
     last += line.back();
     ++count;
@@ -160,8 +162,8 @@ RenderScene muscle_scene(const PolygonSoup& soup, const Polylines* fibres, const
 }
 
 RenderScene template_scene(springs::TemplateKind kind, int nr, int ns, int points) {
-  if (nr < 2 || ns < 2) throw OptionError("template fibres: need at least 2 x 2, got " + std::to_string(nr) + " x " +
-                                          std::to_string(ns));
+  if (nr < 2 || ns < 2)
+    throw OptionError("template fibres: need at least 2 x 2, got " + std::to_string(nr) + " x " + std::to_string(ns));
   if (points < 2) throw OptionError("template points: need at least 2 per fibre, got " + std::to_string(points));
   RenderScene scene;
   // The cube's 12 edges.

@@ -35,9 +35,9 @@ struct Image {
 /// One polyline drawn as a screen-space ribbon of `width_px` pixels, one colour per point
 /// (interpolated along each segment).
 struct SceneLine {
-  std::vector<Vec3> points;    ///< at least 2
-  std::vector<Rgba> colours;   ///< one per point
-  float width_px = 3.0f;       ///< ribbon width at the default 800x600 view, pixels
+  std::vector<Vec3> points;   ///< at least 2
+  std::vector<Rgba> colours;  ///< one per point
+  float width_px = 3.0f;      ///< ribbon width at the default 800x600 view, pixels
 };
 
 /// Everything drawn in one picture. Surfaces are translucent (sorted back to front per view and
@@ -110,13 +110,13 @@ struct Camera {
 
 /// Options of view_cameras.
 struct ViewLayout {
-  int views = 4;              ///< cameras, evenly spaced around the axis (default 4)
+  int views = 4;                  ///< cameras, evenly spaced around the axis (default 4)
   double aspect = 800.0 / 600.0;  ///< width / height of one view (default 4:3)
-  double elevation_deg = 0;   ///< tilt of the viewing direction out of the plane normal to the
-                              ///< axis, towards the axis (default 0)
-  double azimuth_deg = 0;     ///< turn of the first view around the axis (default 0)
-  bool axis_up = false;       ///< axis points up on screen (default false: to the right)
-  double margin = 0.06;       ///< blank border, fraction of the half extents (default 0.06)
+  double elevation_deg = 0;       ///< tilt of the viewing direction out of the plane normal to the
+                                  ///< axis, towards the axis (default 0)
+  double azimuth_deg = 0;         ///< turn of the first view around the axis (default 0)
+  bool axis_up = false;           ///< axis points up on screen (default false: to the right)
+  double margin = 0.06;           ///< blank border, fraction of the half extents (default 0.06)
   /// Throws OptionError naming the field.
   void validate() const;
 };

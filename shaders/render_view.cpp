@@ -145,8 +145,7 @@ Image Renderer::render(const RenderScene& scene, const RenderOptions& options) {
   const int W = cols * options.width, H = rows * options.height;
 
   context_.make_current();
-  while (glGetError() != GL_NO_ERROR) {
-  }
+  while (glGetError() != GL_NO_ERROR) {}
   GLint max_renderbuffer = 0, max_samples = 1, max_viewport[2] = {0, 0};
   glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_renderbuffer);
   glGetIntegerv(GL_MAX_SAMPLES, &max_samples);

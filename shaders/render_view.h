@@ -18,15 +18,15 @@ namespace fascicle::shaders {
 
 /// Options of one rendered picture.
 struct RenderOptions {
-  int views = 4;                   ///< views around the axis, tiled (default 4, in [1, 64])
-  int width = 800, height = 600;   ///< pixels of one view (default 800 x 600, each in [16, 8192])
-  Rgba background{1, 1, 1, 1};     ///< clear colour (default white)
-  double elevation_deg = 0;        ///< views tilted towards the axis (default 0; templates use 25)
-  double azimuth_deg = 0;          ///< turn of the first view around the axis (default 0)
-  bool axis_up = false;            ///< axis vertical on screen (default false: horizontal)
-  int samples = 8;                 ///< multisampling, clamped to GL_MAX_SAMPLES (default 8, in [1, 32])
-  float line_scale = 1.0f;         ///< multiplies every line width (default 1; widths also scale
-                                   ///< with the view height / 600)
+  int views = 4;                  ///< views around the axis, tiled (default 4, in [1, 64])
+  int width = 800, height = 600;  ///< pixels of one view (default 800 x 600, each in [16, 8192])
+  Rgba background{1, 1, 1, 1};    ///< clear colour (default white)
+  double elevation_deg = 0;       ///< views tilted towards the axis (default 0; templates use 25)
+  double azimuth_deg = 0;         ///< turn of the first view around the axis (default 0)
+  bool axis_up = false;           ///< axis vertical on screen (default false: horizontal)
+  int samples = 8;                ///< multisampling, clamped to GL_MAX_SAMPLES (default 8, in [1, 32])
+  float line_scale = 1.0f;        ///< multiplies every line width (default 1; widths also scale
+                                  ///< with the view height / 600)
   /// Throws OptionError naming the field.
   void validate() const;
 };

@@ -16,7 +16,7 @@ namespace fascicle::shaders {
 struct StreamBandwidthOptions {
   std::size_t bytes = std::size_t(256) << 20;  ///< size of each of the two buffers, a multiple of 16,
                                                ///< at most 64 GiB (default 256 MiB)
-  int repetitions = 5;      ///< timed repetitions, the best is kept (default 5)
+  int repetitions = 5;                         ///< timed repetitions, the best is kept (default 5)
   double min_seconds = 0.05;  ///< each repetition doubles its dispatches until it takes this long (default 0.05 s)
   /// Throws OptionError naming the bad field.
   void validate() const;

@@ -50,10 +50,9 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
   table.rest.assign(table.dirs.size(), std::vector<double>(static_cast<std::size_t>(n), 0.0));
   const long plane = static_cast<long>(shape.nx) * shape.ny;
   for (const Spring& s : system.springs) {
-    const std::array<int, 3> delta = {
-        static_cast<int>(s.b % shape.nx - s.a % shape.nx),
-        static_cast<int>((s.b / shape.nx) % shape.ny - (s.a / shape.nx) % shape.ny),
-        static_cast<int>(s.b / plane - s.a / plane)};
+    const std::array<int, 3> delta = {static_cast<int>(s.b % shape.nx - s.a % shape.nx),
+                                      static_cast<int>((s.b / shape.nx) % shape.ny - (s.a / shape.nx) % shape.ny),
+                                      static_cast<int>(s.b / plane - s.a / plane)};
     bool found = false;
     for (std::size_t d = 0; d < table.dirs.size() && !found; ++d) {
       if (table.dirs[d] == delta) {
@@ -80,11 +79,14 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
 
   // The coarse lattice.
   const LatticeShape coarse_shape{shape.nx / 2 + 1, shape.ny / 2 + 1, shape.nz / 2 + 1, shape.model};
-  const int size[3] = {shape.nx, shape.ny, shape.nz}, coarse_size[3] = {coarse_shape.nx, coarse_shape.ny, coarse_shape.nz};
+  const int size[3] = {shape.nx, shape.ny, shape.nz},
+            coarse_size[3] = {coarse_shape.nx, coarse_shape.ny, coarse_shape.nz};
   std::vector<int> to_fine[3];
   for (int a = 0; a < 3; ++a)
     for (int c = 0; c < coarse_size[a]; ++c) to_fine[a].push_back(fine_index(c, size[a], coarse_size[a]));
-  auto fine_point = [&](int i, int j, int k) { return to_fine[0][i] + shape.nx * (to_fine[1][j] + static_cast<long>(shape.ny) * to_fine[2][k]); };
+  auto fine_point = [&](int i, int j, int k) {
+    return to_fine[0][i] + shape.nx * (to_fine[1][j] + static_cast<long>(shape.ny) * to_fine[2][k]);
+  };
   SpringSystem coarse;
   const long cn = static_cast<long>(coarse_shape.nx) * coarse_shape.ny * coarse_shape.nz;
   coarse.positions.resize(cn);
@@ -139,8 +141,8 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
                 const double across = table.of(p, diagonal, shape);
                 if (!(across > 0.0)) return report;
                 // (u_a . u_b) for the signed unit steps; |left| t_a t_b times it, twice
-                square += 2.0 * std::abs(left[a]) * std::abs(left[b]) *
-                          0.5 * (across * across - length[a] * length[a] - length[b] * length[b]);
+                square += 2.0 * std::abs(left[a]) * std::abs(left[b]) * 0.5 *
+                          (across * across - length[a] * length[a] - length[b] * length[b]);
               }
             }
             if (!(square > 0.0)) return report;
@@ -203,11 +205,13 @@ CoarseStartReport coarse_start(SpringSystem& system, const LatticeShape& shape, 
         if (system.fixed[p]) continue;
         Vec3 sum = Vec3::Zero();
         for (int corner = 0; corner < 8; ++corner) {
-          const int ci = cell[0][i] + (corner & 1), cj = cell[1][j] + ((corner >> 1) & 1), ck = cell[2][k] + (corner >> 2);
+          const int ci = cell[0][i] + (corner & 1), cj = cell[1][j] + ((corner >> 1) & 1),
+                    ck = cell[2][k] + (corner >> 2);
           const double w = ((corner & 1) ? weight[0][i] : 1.0 - weight[0][i]) *
                            (((corner >> 1) & 1) ? weight[1][j] : 1.0 - weight[1][j]) *
                            ((corner >> 2) ? weight[2][k] : 1.0 - weight[2][k]);
-          if (w != 0.0) sum += w * coarse.positions[ci + coarse_shape.nx * (cj + static_cast<long>(coarse_shape.ny) * ck)];
+          if (w != 0.0)
+            sum += w * coarse.positions[ci + coarse_shape.nx * (cj + static_cast<long>(coarse_shape.ny) * ck)];
         }
         system.positions[p] = sum;
       }

@@ -26,9 +26,9 @@ namespace fascicle::springs {
 
 /// What a coarse start did.
 struct CoarseStartReport {
-  int levels = 0;           ///< coarse lattices settled (0: none, the lattice is too small)
-  int iterations = 0;       ///< iterations on all coarse lattices
-  double seconds = 0.0;     ///< wall time of the whole coarse start
+  int levels = 0;        ///< coarse lattices settled (0: none, the lattice is too small)
+  int iterations = 0;    ///< iterations on all coarse lattices
+  double seconds = 0.0;  ///< wall time of the whole coarse start
 };
 
 /// Moves the free points of `system`, a lattice of `shape` (build_lattice order, springs exactly

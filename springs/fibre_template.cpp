@@ -26,9 +26,8 @@ constexpr double kRectusDrop = 0.25;
 }  // namespace
 
 const std::vector<TemplateKind>& all_template_kinds() {
-  static const std::vector<TemplateKind> kinds = {TemplateKind::parallel, TemplateKind::pennate,
-                                                  TemplateKind::curved, TemplateKind::fanned,
-                                                  TemplateKind::rectus};
+  static const std::vector<TemplateKind> kinds = {TemplateKind::parallel, TemplateKind::pennate, TemplateKind::curved,
+                                                  TemplateKind::fanned, TemplateKind::rectus};
   return kinds;
 }
 
@@ -46,8 +45,7 @@ const char* template_name(TemplateKind kind) {
 TemplateKind parse_template_kind(const std::string& name) {
   for (TemplateKind kind : all_template_kinds())
     if (name == template_name(kind)) return kind;
-  throw OptionError("template: unknown kind '" + name +
-                    "' (valid: parallel, pennate, curved, fanned, rectus)");
+  throw OptionError("template: unknown kind '" + name + "' (valid: parallel, pennate, curved, fanned, rectus)");
 }
 
 Vec3 template_point(TemplateKind kind, double r, double s, double t) {
@@ -55,8 +53,7 @@ Vec3 template_point(TemplateKind kind, double r, double s, double t) {
   s = clamp01(s);
   t = clamp01(t);
   switch (kind) {
-    case TemplateKind::parallel:
-      return Vec3(r, s, t);
+    case TemplateKind::parallel: return Vec3(r, s, t);
     case TemplateKind::pennate:
       // Origin x in [0, 1/2] on z = 0, insertion x in [1/2, 1] on z = 1: every fibre is the
       // same oblique segment shifted in x (pennation angle 26.6 degrees from z).
@@ -97,33 +94,25 @@ bool TemplateArea::contains(const Vec3& p, double tolerance) const {
 TemplateArea origin_area(TemplateKind kind) {
   switch (kind) {
     case TemplateKind::parallel:
-    case TemplateKind::fanned:
-      return {{{Vec3(0, 0, 0), Vec3(1, 1, 0)}}};
-    case TemplateKind::pennate:
-      return {{{Vec3(0, 0, 0), Vec3(0.5, 1, 0)}}};
-    case TemplateKind::curved:
-      return {{{Vec3(0.5 - kCurvedOuter, 0, 0), Vec3(0.5 - kCurvedInner, 1, 0)}}};
-    case TemplateKind::rectus:
-      return {{{Vec3(0.5, 0, kRectusDrop), Vec3(0.5, 1, 1)}}};
+    case TemplateKind::fanned: return {{{Vec3(0, 0, 0), Vec3(1, 1, 0)}}};
+    case TemplateKind::pennate: return {{{Vec3(0, 0, 0), Vec3(0.5, 1, 0)}}};
+    case TemplateKind::curved: return {{{Vec3(0.5 - kCurvedOuter, 0, 0), Vec3(0.5 - kCurvedInner, 1, 0)}}};
+    case TemplateKind::rectus: return {{{Vec3(0.5, 0, kRectusDrop), Vec3(0.5, 1, 1)}}};
   }
   return {};
 }
 
 TemplateArea insertion_area(TemplateKind kind) {
   switch (kind) {
-    case TemplateKind::parallel:
-      return {{{Vec3(0, 0, 1), Vec3(1, 1, 1)}}};
+    case TemplateKind::parallel: return {{{Vec3(0, 0, 1), Vec3(1, 1, 1)}}};
     case TemplateKind::fanned: {
       const double lo = 0.5 - 0.5 * kFanWidth, hi = 0.5 + 0.5 * kFanWidth;
       return {{{Vec3(lo, lo, 1), Vec3(hi, hi, 1)}}};
     }
-    case TemplateKind::pennate:
-      return {{{Vec3(0.5, 0, 1), Vec3(1, 1, 1)}}};
-    case TemplateKind::curved:
-      return {{{Vec3(0.5 + kCurvedInner, 0, 0), Vec3(0.5 + kCurvedOuter, 1, 0)}}};
+    case TemplateKind::pennate: return {{{Vec3(0.5, 0, 1), Vec3(1, 1, 1)}}};
+    case TemplateKind::curved: return {{{Vec3(0.5 + kCurvedInner, 0, 0), Vec3(0.5 + kCurvedOuter, 1, 0)}}};
     case TemplateKind::rectus:
-      return {{{Vec3(0, 0, 0), Vec3(0, 1, 1 - kRectusDrop)},
-               {Vec3(1, 0, 0), Vec3(1, 1, 1 - kRectusDrop)}}};
+      return {{{Vec3(0, 0, 0), Vec3(0, 1, 1 - kRectusDrop)}, {Vec3(1, 0, 0), Vec3(1, 1, 1 - kRectusDrop)}}};
   }
   return {};
 }

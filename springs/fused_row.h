@@ -16,7 +16,6 @@ constexpr int kFirstPushGroup = 3;
 // Model-6: the direction (0, 0, 1) (half_offsets order, checked at construction).
 constexpr int kModel6FirstPush = 2;
 
-
 // One row on a vector path (AVX-512: 8 points a vector, fused_rows_avx512; AVX2: 4, fused_rows_avx2). A point's own springs are summed in registers
 // (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
 // target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
@@ -25,11 +24,11 @@ constexpr int kModel6FirstPush = 2;
 // shifts the along-x force together with the dx = -1 springs' forces on their sources.)
 // Without `integrate` (a slab's prologue) only the pushes are made.
 struct FusedRow {
-  const double* x[3];               // the row's positions (index i = point i of the row)
-  double* p[3];                     // the row's previous positions, overwritten with the new ones
-  const double* ring[3];            // the row's accumulated pushes
+  const double* x[3];     // the row's positions (index i = point i of the row)
+  double* p[3];           // the row's previous positions, overwritten with the new ones
+  const double* ring[3];  // the row's accumulated pushes
   int directions;
-  bool valid[kMaxDirections];       // the direction's target row exists (and is used)
+  bool valid[kMaxDirections];  // the direction's target row exists (and is used)
   int dx[kMaxDirections];
   long offset[kMaxDirections];      // index offset of the target point
   const double* k[kMaxDirections];  // per-point stiffness at the source (null: ku)
@@ -38,8 +37,8 @@ struct FusedRow {
   int along_x;                      // the direction (1, 0, 0), -1 when not valid
   // Model-26: the 12 other directions in 4 groups of one target row each, (dx = -1, 0, +1).
   int group[4][3];
-  double* group_push[4][3];         // the group's target row (null: not pushed)
-  const double* a;                  // per-point a, b (null: au, bu)
+  double* group_push[4][3];  // the group's target row (null: not pushed)
+  const double* a;           // per-point a, b (null: au, bu)
   const double* b;
   double au, bu;
   const std::uint8_t* fixed;

@@ -14,9 +14,7 @@ namespace {
 // 0-7 (absolute values: the templates may be left- or right-handed in (r, s, t)).
 double cell_volume(const Lattice& lattice, int i, int j, int k) {
   const auto& p = lattice.system.positions;
-  auto at = [&](int di, int dj, int dk) -> const Vec3& {
-    return p[lattice.index(i + di, j + dj, k + dk)];
-  };
+  auto at = [&](int di, int dj, int dk) -> const Vec3& { return p[lattice.index(i + di, j + dj, k + dk)]; };
   const Vec3& a = at(0, 0, 0);
   const Vec3& h = at(1, 1, 1);
   const Vec3 ring[6] = {at(1, 0, 0), at(1, 1, 0), at(0, 1, 0), at(0, 1, 1), at(0, 0, 1), at(1, 0, 1)};
@@ -77,15 +75,14 @@ void add_springs(Lattice& lattice) {
       for (int i = 0; i < lattice.nx; ++i)
         for (const auto& o : offsets) {
           const int i2 = i + o[0], j2 = j + o[1], k2 = k + o[2];
-          if (i2 < 0 || j2 < 0 || k2 < 0 || i2 >= lattice.nx || j2 >= lattice.ny || k2 >= lattice.nz)
-            continue;
+          if (i2 < 0 || j2 < 0 || k2 < 0 || i2 >= lattice.nx || j2 >= lattice.ny || k2 >= lattice.nz) continue;
           Spring s;
           s.a = lattice.index(i, j, k);
           s.b = lattice.index(i2, j2, k2);
           s.rest = (system.positions[s.a] - system.positions[s.b]).norm();
           if (!(s.rest > 0.0))
-            throw OptionError("lattice: points " + std::to_string(s.a) + " and " +
-                              std::to_string(s.b) + " coincide; use fewer fibres or points");
+            throw OptionError("lattice: points " + std::to_string(s.a) + " and " + std::to_string(s.b) +
+                              " coincide; use fewer fibres or points");
           s.stiffness = 1.0 / s.rest;
           system.springs.push_back(s);
         }
@@ -98,8 +95,7 @@ void finish(Lattice& lattice, double mass) {
   for (int k = 0; k < lattice.nz; ++k)
     for (int j = 0; j < lattice.ny; ++j)
       for (int i = 0; i < lattice.nx; ++i)
-        if (i == 0 || j == 0 || k == 0 || i == lattice.nx - 1 || j == lattice.ny - 1 ||
-            k == lattice.nz - 1)
+        if (i == 0 || j == 0 || k == 0 || i == lattice.nx - 1 || j == lattice.ny - 1 || k == lattice.nz - 1)
           system.fixed[lattice.index(i, j, k)] = 1;
   system.mass.assign(n, mass);
   for (int j = 0; j < lattice.ny; ++j)
@@ -144,13 +140,11 @@ void LatticeOptions::validate() const {
       throw OptionError("nr x ns x resolution: above the limit of 2e8 points");
   } else if (fibres < 4)
     throw OptionError("fibres: must be >= 4 (a 2 x 2 lattice), got " + std::to_string(fibres));
-  if (fibres > 4'000'000)
-    throw OptionError("fibres: at most 4000000, got " + std::to_string(fibres));
+  if (fibres > 4'000'000) throw OptionError("fibres: at most 4000000, got " + std::to_string(fibres));
   if (!(edge_cell > 0.0 && edge_cell <= 1.0))
     throw OptionError("edge_cell: must be in (0, 1], got " + std::to_string(edge_cell));
   if (resolution < 2 || resolution > 100'000)
-    throw OptionError("resolution: must be in 2..100000 points per fibre, got " +
-                      std::to_string(resolution));
+    throw OptionError("resolution: must be in 2..100000 points per fibre, got " + std::to_string(resolution));
   if (static_cast<double>(fibres) * resolution > 2e8)
     throw OptionError("fibres x resolution: " + std::to_string(static_cast<double>(fibres) * resolution) +
                       " points is above the limit of 2e8");
@@ -188,7 +182,7 @@ Vec3 lattice_coordinates(const Lattice& lattice, int q) {
 Lattice build_lattice(const LatticeOptions& options) {
   options.validate();
   const auto split = (options.nr > 0 && options.ns > 0) ? std::array<int, 2>{options.nr, options.ns}
-                                                         : near_square_split(options.fibres);
+                                                        : near_square_split(options.fibres);
   Lattice lattice;
   lattice.nx = split[0];
   lattice.ny = split[1];
@@ -222,8 +216,7 @@ Lattice regular_lattice(int n, SpringModel model, double spacing, double mass, b
   lattice.system.positions.resize(static_cast<std::size_t>(n) * n * n);
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        lattice.system.positions[lattice.index(i, j, k)] = Vec3(i, j, k) * spacing;
+      for (int i = 0; i < n; ++i) lattice.system.positions[lattice.index(i, j, k)] = Vec3(i, j, k) * spacing;
   finish(lattice, mass);
   if (!fix_boundary) std::fill(lattice.system.fixed.begin(), lattice.system.fixed.end(), 0);
   return lattice;

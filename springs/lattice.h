@@ -31,14 +31,14 @@ const std::vector<std::array<int, 3>>& half_offsets(SpringModel model);
 /// Options for build_lattice.
 struct LatticeOptions {
   TemplateKind kind = TemplateKind::parallel;  ///< template family (default parallel)
-  int fibres = 100;                     ///< fibre count N, split nr x ns near-square (default 100)
+  int fibres = 100;                            ///< fibre count N, split nr x ns near-square (default 100)
   /// Explicit split: when both are > 0 (each >= 2) the lattice has nr x ns lines and `fibres` is
   /// ignored (default 0, 0: the near-square split of `fibres`).
   int nr = 0, ns = 0;
-  int resolution = 20;                  ///< points per fibre, >= 2 (default 20)
+  int resolution = 20;                      ///< points per fibre, >= 2 (default 20)
   SpringModel model = SpringModel::model6;  ///< connectivity (default model-6)
-  double density = 1.1;  ///< mass per unit template volume; mass per point = density V / #points
-                         ///< (default 1.1: muscle tissue in the thesis's units, ch. 7.1.3)
+  double density = 1.1;                     ///< mass per unit template volume; mass per point = density V / #points
+                                            ///< (default 1.1: muscle tissue in the thesis's units, ch. 7.1.3)
   /// Width of the cells between the boundary lines and the first inner lines along r and s, in
   /// inner spacings (default 1: evenly spaced lines). 0.5 puts each inner line at the centre of
   /// its share of the cross-section, as when the boundary lines are a surface ring round the

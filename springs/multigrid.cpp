@@ -111,8 +111,8 @@ struct Level {
   double rho[3] = {1.0, 1.0, 1.0};  // estimated spectral radius of T^-1 A per coordinate
   std::vector<double> d, z;         // Chebyshev update, T^-1 r
   std::vector<char> active;
-  std::vector<double> b, x, r;   // 3 values a point (coarse levels' right side and solution)
-  DimMap mx, my, mz;             // interpolation from the next coarser level (not on the last)
+  std::vector<double> b, x, r;  // 3 values a point (coarse levels' right side and solution)
+  DimMap mx, my, mz;            // interpolation from the next coarser level (not on the last)
 };
 
 template <typename Body>
@@ -196,21 +196,22 @@ struct LatticeMultigrid::Impl {
       const std::size_t step = stride(L, axis);
       const int length = extent(L, axis);
       const std::size_t lines = L.points / static_cast<std::size_t>(length);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines, 64), [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t line = range.begin(); line != range.end(); ++line) {
-          const std::size_t first = line_start(L, axis, line);
-          double previous = 0.0;
-          for (int t = 0; t < length; ++t) {
-            const std::size_t k = 3 * (first + t * step) + c;
-            previous = (r[k] - L.lo[k] * previous) * L.inv[k];
-            z[k] = previous;
-          }
-          for (int t = length - 2; t >= 0; --t) {
-            const std::size_t k = 3 * (first + t * step) + c;
-            z[k] -= L.cp[k] * z[k + 3 * step];
-          }
-        }
-      });
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines, 64),
+                        [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t line = range.begin(); line != range.end(); ++line) {
+                            const std::size_t first = line_start(L, axis, line);
+                            double previous = 0.0;
+                            for (int t = 0; t < length; ++t) {
+                              const std::size_t k = 3 * (first + t * step) + c;
+                              previous = (r[k] - L.lo[k] * previous) * L.inv[k];
+                              z[k] = previous;
+                            }
+                            for (int t = length - 2; t >= 0; --t) {
+                              const std::size_t k = 3 * (first + t * step) + c;
+                              z[k] -= L.cp[k] * z[k + 3 * step];
+                            }
+                          }
+                        });
     }
   }
 
@@ -379,9 +380,9 @@ struct LatticeMultigrid::Impl {
     L.z.assign(3 * n, 0.0);
     std::vector<double> up(3 * n, 0.0), dg(3 * n, 1.0);
     auto coordinate = [&](std::size_t i, int axis) {
-      return axis == 0 ? static_cast<int>(i % L.nx)
-                       : axis == 1 ? static_cast<int>((i / L.nx) % L.ny)
-                                   : static_cast<int>(i / (static_cast<std::size_t>(L.nx) * L.ny));
+      return axis == 0   ? static_cast<int>(i % L.nx)
+             : axis == 1 ? static_cast<int>((i / L.nx) % L.ny)
+                         : static_cast<int>(i / (static_cast<std::size_t>(L.nx) * L.ny));
     };
     for (int c = 0; c < 3; ++c) {
       int best = 0;
@@ -405,9 +406,12 @@ struct LatticeMultigrid::Impl {
         const int at = coordinate(i, best);
         for (std::size_t e = L.ptr[i]; e < L.ptr[i + 1]; ++e) {
           const std::size_t j = static_cast<std::size_t>(L.col[e]);
-          if (j == i) dg[3 * i + c] = L.value(e, c);
-          else if (options.line_smoothing && at > 0 && j + step == i && L.active[j]) L.lo[3 * i + c] = L.value(e, c);
-          else if (options.line_smoothing && at + 1 < extent(L, best) && j == i + step && L.active[j]) up[3 * i + c] = L.value(e, c);
+          if (j == i)
+            dg[3 * i + c] = L.value(e, c);
+          else if (options.line_smoothing && at > 0 && j + step == i && L.active[j])
+            L.lo[3 * i + c] = L.value(e, c);
+          else if (options.line_smoothing && at + 1 < extent(L, best) && j == i + step && L.active[j])
+            up[3 * i + c] = L.value(e, c);
         }
       }
       // Thomas factorization of each line
@@ -529,8 +533,9 @@ struct LatticeMultigrid::Impl {
       }
     });
     if (out_of_window)
-      throw SolverError("multigrid: a coarse stencil reached beyond 3 points (springs between points "
-                        "that are not grid neighbours); use --static-method momentum");
+      throw SolverError(
+          "multigrid: a coarse stencil reached beyond 3 points (springs between points "
+          "that are not grid neighbours); use --static-method momentum");
     C.ptr.assign(C.points + 1, 0);
     C.active.assign(C.points, 0);
     std::size_t row = 0;
@@ -572,7 +577,8 @@ struct LatticeMultigrid::Impl {
       Eigen::SparseMatrix<double> matrix(n, n);
       matrix.setFromTriplets(triplets.begin(), triplets.end());
       coarsest[c].compute(matrix);
-      if (coarsest[c].info() != Eigen::Success) coarsest_direct = false;
+      if (coarsest[c].info() != Eigen::Success)
+        coarsest_direct = false;
       else {
         // a positive definite matrix has a positive diagonal in its LDL^T
         const auto d = coarsest[c].vectorD();
@@ -584,8 +590,7 @@ struct LatticeMultigrid::Impl {
 };
 
 LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShape& shape,
-                                   const MultigridOptions& options,
-                                   const std::vector<std::array<double, 3>>* weights)
+                                   const MultigridOptions& options, const std::vector<std::array<double, 3>>* weights)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
   const std::size_t n = system.positions.size();
@@ -593,8 +598,8 @@ LatticeMultigrid::LatticeMultigrid(const SpringSystem& system, const LatticeShap
     throw OptionError("multigrid: " + std::to_string(weights->size()) + " spring weights for " +
                       std::to_string(system.springs.size()) + " springs");
   auto weight = [&](std::size_t s, int c) { return weights ? (*weights)[s][c] : system.springs[s].stiffness; };
-  if (shape.nx < 2 || shape.ny < 2 || shape.nz < 2 ||
-      static_cast<std::size_t>(shape.nx) * shape.ny * shape.nz != n || system.fixed.size() != n)
+  if (shape.nx < 2 || shape.ny < 2 || shape.nz < 2 || static_cast<std::size_t>(shape.nx) * shape.ny * shape.nz != n ||
+      system.fixed.size() != n)
     throw OptionError("multigrid: the lattice shape " + std::to_string(shape.nx) + " x " + std::to_string(shape.ny) +
                       " x " + std::to_string(shape.nz) + " does not describe the " + std::to_string(n) +
                       " points of the spring system");
@@ -713,8 +718,7 @@ void LatticeMultigrid::cycle(const std::vector<double>& b, std::vector<double>& 
   impl_->vcycle(0, b.data(), x.data(), false);
 }
 
-double LatticeMultigrid::residual(const std::vector<double>& b, const std::vector<double>& x,
-                                  std::vector<double>& r) {
+double LatticeMultigrid::residual(const std::vector<double>& b, const std::vector<double>& x, std::vector<double>& r) {
   const Level& L = impl_->levels.front();
   r.resize(3 * L.points);
   Impl::residual(L, b.data(), x.data(), r.data());

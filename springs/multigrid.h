@@ -39,8 +39,8 @@ namespace fascicle::springs {
 
 /// Options of the multigrid hierarchy.
 struct MultigridOptions {
-  int smoothing_steps = 2;  ///< smoothing steps (Chebyshev degree) before and after each coarse
-                            ///< correction, 1..20 (default 2)
+  int smoothing_steps = 2;     ///< smoothing steps (Chebyshev degree) before and after each coarse
+                               ///< correction, 1..20 (default 2)
   int coarsest_points = 4096;  ///< a level with at most this many points is solved directly,
                                ///< 8..200000 (default 4096)
   bool line_smoothing = true;  ///< smooth each coordinate line by line along the grid axis of
@@ -60,8 +60,7 @@ class LatticeMultigrid {
   /// else OptionError. `weights`, when given (#springs, each > 0), replaces the stiffness of
   /// spring s by weights[s][c] in the operator of coordinate c (three Laplacians on one
   /// sparsity pattern, e.g. the diagonal of each spring's Hessian block).
-  LatticeMultigrid(const SpringSystem& system, const LatticeShape& shape,
-                   const MultigridOptions& options = {},
+  LatticeMultigrid(const SpringSystem& system, const LatticeShape& shape, const MultigridOptions& options = {},
                    const std::vector<std::array<double, 3>>* weights = nullptr);
   ~LatticeMultigrid();
   LatticeMultigrid(const LatticeMultigrid&) = delete;

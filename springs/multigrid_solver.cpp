@@ -115,11 +115,11 @@ class MultigridSolver final : public SpringSolver {
       std::ostringstream out;
       out << "static multigrid diverged at iteration " << iterations_ << " (";
       if (std::isfinite(energy_))
-        out << "energy " << energy_ << ", above " << options_.energy_growth_bound << " x the initial " << initial_energy_;
+        out << "energy " << energy_ << ", above " << options_.energy_growth_bound << " x the initial "
+            << initial_energy_;
       else
         out << "positions became NaN/Inf";
-      out << "): use a smaller --multigrid-step (now " << options_.multigrid_step
-          << ") or --static-method momentum";
+      out << "): use a smaller --multigrid-step (now " << options_.multigrid_step << ") or --static-method momentum";
       throw SolverError(out.str());
     }
     multigrid_->precondition(force_, step_);
@@ -182,7 +182,8 @@ class MultigridSolver final : public SpringSolver {
   template <typename Body>
   void for_blocks(Body&& body) {
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int blk = range.begin(); blk != range.end(); ++blk) body(blk, blk * kBlock, std::min(n_, (blk + 1) * kBlock));
+      for (int blk = range.begin(); blk != range.end(); ++blk)
+        body(blk, blk * kBlock, std::min(n_, (blk + 1) * kBlock));
     });
   }
 

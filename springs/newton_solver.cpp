@@ -60,8 +60,7 @@ constexpr int kBlock = 2048;
 
 class NewtonSolver final : public SpringSolver {
  public:
-  NewtonSolver(const SpringSystem& system, const SettleOptions& options)
-      : options_(options), input_(system.positions) {
+  NewtonSolver(const SpringSystem& system, const SettleOptions& options) : options_(options), input_(system.positions) {
     n_ = static_cast<int>(system.positions.size());
     fixed_ = system.fixed;
     check_anchored(system);
@@ -121,16 +120,19 @@ class NewtonSolver final : public SpringSolver {
           trial[k] = x_[k] + alpha * p[k];
       });
       const double e = energy_at(trial);
-      if (e <= energy0 - 1e-4 * alpha * descent) accepted = true;
-      else if (e <= energy0 + noise && force_norm_at(trial) < force_norm_) accepted = true;
+      if (e <= energy0 - 1e-4 * alpha * descent)
+        accepted = true;
+      else if (e <= energy0 + noise && force_norm_at(trial) < force_norm_)
+        accepted = true;
       if (accepted) break;
     }
     stalled_ = !accepted;
     if (accepted) x_.swap(trial);
     evaluate();
     if (!std::isfinite(residual_) || !std::isfinite(energy_))
-      throw SolverError("static: the solve produced NaN/Inf (springs of zero length?); check the "
-                        "input or use --solver verlet");
+      throw SolverError(
+          "static: the solve produced NaN/Inf (springs of zero length?); check the "
+          "input or use --solver verlet");
     return residual_;
   }
 
@@ -147,11 +149,11 @@ class NewtonSolver final : public SpringSolver {
   bool stalled() const override { return stalled_; }
 
  private:
-
   template <typename Body>
   void for_blocks(Body&& body) {
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
-      for (int blk = range.begin(); blk != range.end(); ++blk) body(blk, blk * kBlock, std::min(n_, (blk + 1) * kBlock));
+      for (int blk = range.begin(); blk != range.end(); ++blk)
+        body(blk, blk * kBlock, std::min(n_, (blk + 1) * kBlock));
     });
   }
 
@@ -164,7 +166,8 @@ class NewtonSolver final : public SpringSolver {
   double dot(const std::vector<double>& a, const std::vector<double>& b) {
     for_blocks([&](int blk, int begin, int end) {
       double s = 0.0;
-      for (std::size_t k = 3 * static_cast<std::size_t>(begin); k < 3 * static_cast<std::size_t>(end); ++k) s += a[k] * b[k];
+      for (std::size_t k = 3 * static_cast<std::size_t>(begin); k < 3 * static_cast<std::size_t>(end); ++k)
+        s += a[k] * b[k];
       partial_[blk] = s;
     });
     return sum_partials();
@@ -228,7 +231,8 @@ class NewtonSolver final : public SpringSolver {
         Eigen::Matrix3d inverse;
         double det = 0.0;
         block.computeInverseAndDetWithCheck(inverse, det, invertible, 1e-300);
-        if (!invertible || !inverse.allFinite()) inverse = Eigen::Matrix3d::Identity() / std::max(block.trace() / 3.0, 1e-300);
+        if (!invertible || !inverse.allFinite())
+          inverse = Eigen::Matrix3d::Identity() / std::max(block.trace() / 3.0, 1e-300);
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) inv[3 * r + c] = inverse(r, c);
       }

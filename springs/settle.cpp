@@ -24,8 +24,7 @@ StaticMethod parse_static_method(const std::string& name) {
   if (name == "newton") return StaticMethod::newton;
   if (name == "local-global") return StaticMethod::local_global;
   if (name == "multigrid") return StaticMethod::multigrid;
-  throw OptionError("static-method: unknown method '" + name +
-                    "' (valid: momentum, newton, local-global, multigrid)");
+  throw OptionError("static-method: unknown method '" + name + "' (valid: momentum, newton, local-global, multigrid)");
 }
 
 Backend parse_backend(const std::string& name) {
@@ -35,9 +34,7 @@ Backend parse_backend(const std::string& name) {
   throw OptionError("backend: unknown backend '" + name + "' (valid: auto, structured, general)");
 }
 
-const char* solver_name(SolverKind kind) {
-  return kind == SolverKind::verlet ? "verlet" : "static";
-}
+const char* solver_name(SolverKind kind) { return kind == SolverKind::verlet ? "verlet" : "static"; }
 
 const char* backend_name(Backend backend) {
   switch (backend) {
@@ -56,16 +53,12 @@ void SettleOptions::validate() const {
   };
   if (!(tolerance >= 0.0) || !std::isfinite(tolerance))
     throw OptionError("tolerance: must be >= 0, got " + str(tolerance));
-  if (max_iterations < 1)
-    throw OptionError("max_iterations: must be >= 1, got " + std::to_string(max_iterations));
+  if (max_iterations < 1) throw OptionError("max_iterations: must be >= 1, got " + std::to_string(max_iterations));
   if (!(mass >= 0.0) || !std::isfinite(mass))
     throw OptionError("mass: must be > 0 (or 0 to keep the model's masses), got " + str(mass));
-  if (!(damping >= 0.0) || !std::isfinite(damping))
-    throw OptionError("damping: must be >= 0, got " + str(damping));
-  if (!(dt >= 0.0) || !std::isfinite(dt))
-    throw OptionError("dt: must be > 0 (or 0 for automatic), got " + str(dt));
-  if (energy_interval < 1)
-    throw OptionError("energy_interval: must be >= 1, got " + std::to_string(energy_interval));
+  if (!(damping >= 0.0) || !std::isfinite(damping)) throw OptionError("damping: must be >= 0, got " + str(damping));
+  if (!(dt >= 0.0) || !std::isfinite(dt)) throw OptionError("dt: must be > 0 (or 0 for automatic), got " + str(dt));
+  if (energy_interval < 1) throw OptionError("energy_interval: must be >= 1, got " + std::to_string(energy_interval));
   if (!(energy_growth_bound > 1.0))
     throw OptionError("energy_growth_bound: must be > 1, got " + str(energy_growth_bound));
   if (anderson_window < 1 || anderson_window > 50)
@@ -232,17 +225,16 @@ VerletCoefficients verlet_coefficients(const SpringSystem& system, const SettleO
   return out;
 }
 
-void throw_verlet_divergence(int iteration, double energy, double initial_energy,
-                             const VerletCoefficients& c, const SettleOptions& options) {
+void throw_verlet_divergence(int iteration, double energy, double initial_energy, const VerletCoefficients& c,
+                             const SettleOptions& options) {
   std::ostringstream out;
   out << "verlet diverged at iteration " << iteration << " (";
   if (std::isfinite(energy))
-    out << "energy " << energy << ", above " << options.energy_growth_bound << " x the initial "
-        << initial_energy;
+    out << "energy " << energy << ", above " << options.energy_growth_bound << " x the initial " << initial_energy;
   else
     out << "positions became NaN/Inf";
-  out << "): time step " << c.dt << " is too large for point mass " << c.min_mass
-      << ", point stiffness " << c.max_point_stiffness << " and mean damping " << c.mean_damping;
+  out << "): time step " << c.dt << " is too large for point mass " << c.min_mass << ", point stiffness "
+      << c.max_point_stiffness << " and mean damping " << c.mean_damping;
   if (options.dt > 0.0)
     out << "; use a smaller --dt (or --dt 0 for the automatic stable step) or a larger --mass";
   else

@@ -63,58 +63,58 @@ enum class DampingMode {
 };
 /// How the static solver finds the equilibrium.
 enum class StaticMethod {
-  momentum,     ///< accelerated gradient on the Verlet kernels: Nesterov's momentum schedule with
-                ///< gradient restarts (O'Donoghue and Candes 2015), unit masses, step 1 / L
-  newton,       ///< truncated Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
-  local_global, ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
-  multigrid,    ///< Newton-CG preconditioned by a geometric multigrid V-cycle on the spring
-                ///< Laplacian (multigrid.h); lattices only: without a fitting LatticeShape it
-                ///< runs the momentum method (report backend "momentum-...")
+  momentum,      ///< accelerated gradient on the Verlet kernels: Nesterov's momentum schedule with
+                 ///< gradient restarts (O'Donoghue and Candes 2015), unit masses, step 1 / L
+  newton,        ///< truncated Newton, matrix-free preconditioned CG, line search (newton_solver.cpp)
+  local_global,  ///< Liu et al. 2013: prefactored sparse Cholesky, one back-substitution per iteration
+  multigrid,     ///< Newton-CG preconditioned by a geometric multigrid V-cycle on the spring
+                 ///< Laplacian (multigrid.h); lattices only: without a fitting LatticeShape it
+                 ///< runs the momentum method (report backend "momentum-...")
 };
 /// Acceleration of the local-global method.
 enum class Acceleration { none, anderson };
 
 /// Parse helpers for the command line. Each throws OptionError naming the option and value.
-SolverKind parse_solver_kind(const std::string& name);  ///< "verlet" | "static"
+SolverKind parse_solver_kind(const std::string& name);      ///< "verlet" | "static"
 StaticMethod parse_static_method(const std::string& name);  ///< "momentum" | "newton" | "local-global" | "multigrid"
-Backend parse_backend(const std::string& name);         ///< "auto" | "structured" | "general"
+Backend parse_backend(const std::string& name);             ///< "auto" | "structured" | "general"
 const char* solver_name(SolverKind kind);
 const char* backend_name(Backend backend);
 
 /// Options of a settle. The command line maps its flags one-to-one onto these fields.
 struct SettleOptions {
   SolverKind solver = SolverKind::verlet;  ///< solver (default verlet, the thesis's)
-  double tolerance = 1e-6;   ///< stop at this relative residual; 0 runs max_iterations (default 1e-6)
-  int max_iterations = 100000;  ///< iteration cap, >= 1 (default 100000)
-  Backend backend = Backend::automatic;  ///< Verlet data path; automatic = structured when a fitting
-                                         ///< lattice shape is given (default automatic)
+  double tolerance = 1e-6;                 ///< stop at this relative residual; 0 runs max_iterations (default 1e-6)
+  int max_iterations = 100000;             ///< iteration cap, >= 1 (default 100000)
+  Backend backend = Backend::automatic;    ///< Verlet data path; automatic = structured when a fitting
+                                           ///< lattice shape is given (default automatic)
   /// Structured path: the portable spring loop, bit-identical on any x86-64 processor and thread
   /// count (true), or the fastest one the processor has, AVX-512/AVX2 (false) (default false).
   bool portable_loop = false;
   // Verlet
-  double mass = 0.0;     ///< point mass override, > 0; 0 keeps the system's masses (default 0)
+  double mass = 0.0;  ///< point mass override, > 0; 0 keeps the system's masses (default 0)
   DampingMode damping_mode = DampingMode::estimate;  ///< (default estimate, formula 7.2)
-  double damping = 0.0;  ///< c for DampingMode::value, >= 0, force time per length (default 0)
-  double dt = 0.0;       ///< time step, > 0; 0 = automatic: 0.9 of the largest stable step of the
-                         ///< damped scheme under a Gershgorin bound of the stiffness (default 0)
-  int energy_interval = 16;  ///< Verlet energy computed every this many iterations, >= 1 (default 16)
+  double damping = 0.0;                ///< c for DampingMode::value, >= 0, force time per length (default 0)
+  double dt = 0.0;                     ///< time step, > 0; 0 = automatic: 0.9 of the largest stable step of the
+                                       ///< damped scheme under a Gershgorin bound of the stiffness (default 0)
+  int energy_interval = 16;            ///< Verlet energy computed every this many iterations, >= 1 (default 16)
   double energy_growth_bound = 100.0;  ///< SolverError when the energy exceeds this times the
                                        ///< initial energy, > 1 (default 100)
-  bool record_energy = false;  ///< energy at every iteration into the report (default false)
+  bool record_energy = false;          ///< energy at every iteration into the report (default false)
   // Static
   StaticMethod static_method = StaticMethod::momentum;  ///< (default momentum: fastest on large lattices,
                                                         ///< measured by `fascicle bench springs`)
-  Acceleration acceleration = Acceleration::anderson;  ///< (default anderson)
-  int anderson_window = 5;  ///< Anderson history length, >= 1 (default 5)
-  double multigrid_step = 0.9;  ///< multigrid: step along the preconditioned force, (0, 2] (default 0.9)
+  Acceleration acceleration = Acceleration::anderson;   ///< (default anderson)
+  int anderson_window = 5;                              ///< Anderson history length, >= 1 (default 5)
+  double multigrid_step = 0.9;           ///< multigrid: step along the preconditioned force, (0, 2] (default 0.9)
   bool multigrid_harmonic_start = true;  ///< multigrid: start from the harmonic interpolation of the
                                          ///< fixed points, not the given free positions (default true)
-  bool multigrid_directional = false;  ///< multigrid: precondition by directional stiffness (Hessian
-                                       ///< diagonal blocks), not the Laplacian (default false: slower)
-  int multigrid_smoothing_steps = 1;  ///< multigrid: smoothing steps before and after each coarse
-                                      ///< correction, 1..20 (default 1: faster than 2)
-  int coarse_start_points = 4096;  ///< static momentum: above this many points, start from the settled
-                                  ///< every-other-point lattice (coarse_start.h); 0 off, >= 8 (default 4096)
+  bool multigrid_directional = false;    ///< multigrid: precondition by directional stiffness (Hessian
+                                         ///< diagonal blocks), not the Laplacian (default false: slower)
+  int multigrid_smoothing_steps = 1;     ///< multigrid: smoothing steps before and after each coarse
+                                         ///< correction, 1..20 (default 1: faster than 2)
+  int coarse_start_points = 4096;        ///< static momentum: above this many points, start from the settled
+                                         ///< every-other-point lattice (coarse_start.h); 0 off, >= 8 (default 4096)
   double coarse_start_tolerance = 1e-6;  ///< coarse lattices' residual (at least tolerance), (0, 1)
                                          ///< (default 1e-6: model-26 lattices need accurate coarse starts)
   /// Model-6 coarse start: offset each interpolated free point by a fixed hashed jitter of this share of
@@ -129,23 +129,23 @@ struct SettleOptions {
 
 /// What a settle did.
 struct SettleReport {
-  std::string solver;   ///< "verlet" | "static"
-  std::string backend;  ///< Verlet: "structured", "structured-uniform", "general"; static:
-                        ///< the same prefixed "momentum-", or "newton-cg", "ldlt",
-                        ///< "multigrid-<number of levels>"
-  int iterations = 0;   ///< iterations run (Newton steps for static newton)
-  int inner_iterations = 0;  ///< conjugate-gradient iterations (static newton), else 0
-  bool converged = false;  ///< final residual <= tolerance (false when tolerance is 0)
-  double residual = 0.0;   ///< relative residual at the returned positions
+  std::string solver;                    ///< "verlet" | "static"
+  std::string backend;                   ///< Verlet: "structured", "structured-uniform", "general"; static:
+                                         ///< the same prefixed "momentum-", or "newton-cg", "ldlt",
+                                         ///< "multigrid-<number of levels>"
+  int iterations = 0;                    ///< iterations run (Newton steps for static newton)
+  int inner_iterations = 0;              ///< conjugate-gradient iterations (static newton), else 0
+  bool converged = false;                ///< final residual <= tolerance (false when tolerance is 0)
+  double residual = 0.0;                 ///< relative residual at the returned positions
   std::vector<double> residual_history;  ///< relative residual per iteration
   std::vector<double> energy_history;    ///< energies as recorded (see record_energy)
-  double setup_seconds = 0.0;  ///< building buffers, factorizing
-  double seconds = 0.0;        ///< iterating (wall time, excluding setup)
-  double dt = 0.0;             ///< Verlet time step used
-  double mean_damping = 0.0;   ///< Verlet mean damping coefficient used
-  int start_levels = 0;        ///< static momentum: coarse lattices settled for the start
-                               ///< (coarse_start.h; their time is in setup_seconds)
-  int start_iterations = 0;    ///< iterations on those coarse lattices
+  double setup_seconds = 0.0;            ///< building buffers, factorizing
+  double seconds = 0.0;                  ///< iterating (wall time, excluding setup)
+  double dt = 0.0;                       ///< Verlet time step used
+  double mean_damping = 0.0;             ///< Verlet mean damping coefficient used
+  int start_levels = 0;                  ///< static momentum: coarse lattices settled for the start
+                                         ///< (coarse_start.h; their time is in setup_seconds)
+  int start_iterations = 0;              ///< iterations on those coarse lattices
 };
 
 /// The shape of a lattice, for the structured path.
@@ -212,15 +212,12 @@ std::unique_ptr<SpringSolver> make_solver(const SpringSystem& system, const Sett
 /// Settles `system` in one call: steps until the relative residual <= tolerance,
 /// max_iterations, or a stalled step (SpringSolver::stalled), and writes the final positions into system.positions. Fixed points are
 /// bitwise unchanged. Throws as make_solver and SpringSolver::step.
-SettleReport settle(SpringSystem& system, const SettleOptions& options,
-                    const LatticeShape* shape = nullptr);
+SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape = nullptr);
 /// The same with a matrix factor made ahead (make_solver above).
 SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape,
                     const std::shared_ptr<const SpringMatrixFactor>& factor);
 
 /// The shape of a lattice built by build_lattice or regular_lattice.
-inline LatticeShape shape_of(const Lattice& lattice) {
-  return {lattice.nx, lattice.ny, lattice.nz, lattice.model};
-}
+inline LatticeShape shape_of(const Lattice& lattice) { return {lattice.nx, lattice.ny, lattice.nz, lattice.model}; }
 
 }  // namespace fascicle::springs

@@ -48,8 +48,7 @@ double largest_stiffness_eigenvalue(const SpringSystem& system, int steps);
 
 /// Throws SolverError for a Verlet run that produced NaN/Inf or too much energy.
 [[noreturn]] void throw_verlet_divergence(int iteration, double energy, double initial_energy,
-                                          const VerletCoefficients& coefficients,
-                                          const SettleOptions& options);
+                                          const VerletCoefficients& coefficients, const SettleOptions& options);
 
 /// An energy below which growth is not divergence: 1e-20 of the energy of every spring
 /// stretched by its rest length (or 1e-300 when that is 0).
@@ -58,20 +57,18 @@ double energy_floor(const SpringSystem& system);
 /// The momentum static solver on the structured path, started from the settled coarse lattice
 /// (coarse_start.h); nullptr when the lattice does not qualify (too small, coarse start off, not a
 /// structured lattice).
-std::unique_ptr<SpringSolver> make_coarse_started_momentum(const SpringSystem& system,
-                                                           const SettleOptions& options,
+std::unique_ptr<SpringSolver> make_coarse_started_momentum(const SpringSystem& system, const SettleOptions& options,
                                                            const LatticeShape& shape);
 
 /// Verlet solvers; with `momentum` the same kernels run the momentum static solver.
-std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
-                                                  const SettleOptions& options, bool momentum = false);
+std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system, const SettleOptions& options,
+                                                  bool momentum = false);
 /// Whether general solvers built from now on may evaluate each spring once when the system fits
 /// one block of points (default true; tests switch it off to check the per-point gather against
 /// it bit for bit).
 void set_general_spring_once(bool enabled);
 /// Returns null when `system` is not exactly the lattice `shape` with stiffness 1 / rest.
-std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
-                                                     const SettleOptions& options,
+std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system, const SettleOptions& options,
                                                      const LatticeShape& shape, bool momentum = false);
 /// Whether structured solvers built from now on may use a vector spring loop (default true; tests
 /// switch it off to check the portable loop against it): the AVX-512 one where the processor has
@@ -85,19 +82,16 @@ bool structured_simd_active();
 /// The spring loop a structured solver built now would use: "avx512", "avx2" or "plain".
 const char* structured_simd_name();
 
-std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system,
-                                                 const SettleOptions& options);
+std::unique_ptr<SpringSolver> make_newton_solver(const SpringSystem& system, const SettleOptions& options);
 /// The multigrid static method: accelerated gradient preconditioned by a multigrid V-cycle on
 /// the spring Laplacian (multigrid_solver.cpp). `shape` must satisfy multigrid_fits.
-std::unique_ptr<SpringSolver> make_multigrid_solver(const SpringSystem& system,
-                                                    const SettleOptions& options,
+std::unique_ptr<SpringSolver> make_multigrid_solver(const SpringSystem& system, const SettleOptions& options,
                                                     const LatticeShape& shape);
 /// True when `shape` describes `system` as a grid the multigrid solver can use: nx ny nz ==
 /// #points, each >= 2, and every spring joins grid neighbours.
 bool multigrid_fits(const SpringSystem& system, const LatticeShape* shape);
 /// The local-global static method; `factor` null: factorized here (factor_spring_matrix).
-std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system,
-                                                 const SettleOptions& options,
+std::unique_ptr<SpringSolver> make_static_solver(const SpringSystem& system, const SettleOptions& options,
                                                  std::shared_ptr<const SpringMatrixFactor> factor = nullptr);
 
 }  // namespace fascicle::springs::detail

@@ -13,25 +13,24 @@ namespace fascicle::springs {
 void validate(const SpringSystem& system) {
   const std::size_t n = system.positions.size();
   if (system.fixed.size() != n)
-    throw OptionError("spring system: fixed has " + std::to_string(system.fixed.size()) +
-                      " flags for " + std::to_string(n) + " points");
+    throw OptionError("spring system: fixed has " + std::to_string(system.fixed.size()) + " flags for " +
+                      std::to_string(n) + " points");
   if (system.mass.size() != n)
-    throw OptionError("spring system: mass has " + std::to_string(system.mass.size()) +
-                      " values for " + std::to_string(n) + " points");
+    throw OptionError("spring system: mass has " + std::to_string(system.mass.size()) + " values for " +
+                      std::to_string(n) + " points");
   for (std::size_t i = 0; i < n; ++i) {
     if (!system.positions[i].allFinite())
       throw OptionError("spring system: point " + std::to_string(i) + " is not finite");
     if (!(system.mass[i] > 0.0) || !std::isfinite(system.mass[i]))
-      throw OptionError("spring system: mass of point " + std::to_string(i) + " is " +
-                        std::to_string(system.mass[i]) + " (must be > 0)");
+      throw OptionError("spring system: mass of point " + std::to_string(i) + " is " + std::to_string(system.mass[i]) +
+                        " (must be > 0)");
   }
   for (std::size_t s = 0; s < system.springs.size(); ++s) {
     const Spring& spring = system.springs[s];
     if (spring.a < 0 || spring.b < 0 || static_cast<std::size_t>(spring.a) >= n ||
         static_cast<std::size_t>(spring.b) >= n || spring.a == spring.b)
-      throw OptionError("spring system: spring " + std::to_string(s) + " joins " +
-                        std::to_string(spring.a) + " and " + std::to_string(spring.b) +
-                        " (need two distinct points below " + std::to_string(n) + ")");
+      throw OptionError("spring system: spring " + std::to_string(s) + " joins " + std::to_string(spring.a) + " and " +
+                        std::to_string(spring.b) + " (need two distinct points below " + std::to_string(n) + ")");
     if (!(spring.rest >= 0.0) || !std::isfinite(spring.rest))
       throw OptionError("spring system: spring " + std::to_string(s) + " has rest length " +
                         std::to_string(spring.rest));
@@ -68,8 +67,7 @@ double residual_force_scale(const SpringSystem& system) {
   double sum = 0.0;
   for (const Spring& s : system.springs) sum += s.stiffness * s.rest;
   if (sum > 0.0) return sum / static_cast<double>(system.springs.size());
-  for (const Spring& s : system.springs)
-    sum += s.stiffness * (system.positions[s.a] - system.positions[s.b]).norm();
+  for (const Spring& s : system.springs) sum += s.stiffness * (system.positions[s.a] - system.positions[s.b]).norm();
   return sum > 0.0 ? sum / static_cast<double>(system.springs.size()) : 1.0;
 }
 
@@ -103,16 +101,13 @@ SpringSystem spring_system_from_thesis(const ThesisModel& model, double mass) {
     const auto& in = model.springs[s];
     if (in.a < 0 || in.b < 0 || in.a >= n || in.b >= n)
       throw InputError(ErrorCode::index_out_of_range,
-                       "spring " + std::to_string(s) + " refers to a point outside 0.." +
-                           std::to_string(n - 1));
+                       "spring " + std::to_string(s) + " refers to a point outside 0.." + std::to_string(n - 1));
     if (in.a == in.b)
       throw InputError(ErrorCode::malformed,
-                       "spring " + std::to_string(s) + " joins point " + std::to_string(in.a) +
-                           " to itself");
+                       "spring " + std::to_string(s) + " joins point " + std::to_string(in.a) + " to itself");
     if (!(in.stiffness > 0.0) || !std::isfinite(in.stiffness))
-      throw InputError(ErrorCode::bad_number, "spring " + std::to_string(s) +
-                                                  " has stiffness " + std::to_string(in.stiffness) +
-                                                  " (must be > 0)");
+      throw InputError(ErrorCode::bad_number, "spring " + std::to_string(s) + " has stiffness " +
+                                                  std::to_string(in.stiffness) + " (must be > 0)");
     Spring spring;
     spring.a = in.a;
     spring.b = in.b;

@@ -48,8 +48,9 @@ class SpringMatrixFactor {
     if (free_count > 0) {
       ldlt.compute(laplacian);
       if (ldlt.info() != Eigen::Success)
-        throw SolverError("static: factorizing the spring matrix failed (a part of the system has no "
-                          "fixed point?); fix points or use --solver verlet");
+        throw SolverError(
+            "static: factorizing the spring matrix failed (a part of the system has no "
+            "fixed point?); fix points or use --solver verlet");
     }
   }
 
@@ -81,10 +82,15 @@ namespace {
 
 class StaticSolver final : public SpringSolver {
  public:
-  StaticSolver(const SpringSystem& system, const SettleOptions& options, std::shared_ptr<const SpringMatrixFactor> factor)
-      : options_(options), system_(system), x_(system.positions),
+  StaticSolver(const SpringSystem& system, const SettleOptions& options,
+               std::shared_ptr<const SpringMatrixFactor> factor)
+      : options_(options),
+        system_(system),
+        x_(system.positions),
         factor_(factor ? std::move(factor) : std::make_shared<const SpringMatrixFactor>(system)),
-        free_id_(factor_->free_id), free_count_(factor_->free_count), ldlt_(factor_->ldlt) {
+        free_id_(factor_->free_id),
+        free_count_(factor_->free_count),
+        ldlt_(factor_->ldlt) {
     if (!factor_->made_for(system))
       throw Error(ErrorCode::internal, "static: the spring matrix factor given was made for another spring system");
     fixed_rhs_ = Eigen::MatrixXd::Zero(free_count_, 3);
@@ -126,8 +132,9 @@ class StaticSolver final : public SpringSolver {
     double e = 0.0, r = 0.0;
     evaluate(positions, &e, &r);
     if (!std::isfinite(e) || !std::isfinite(r))
-      throw SolverError("static: the solve produced NaN/Inf (springs of zero length with nonzero "
-                        "rest length?); check the input or use --solver verlet");
+      throw SolverError(
+          "static: the solve produced NaN/Inf (springs of zero length with nonzero "
+          "rest length?); check the input or use --solver verlet");
     accept(next, std::move(positions), e, r);
     return residual_;
   }

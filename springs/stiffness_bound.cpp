@@ -94,8 +94,9 @@ double largest_stiffness_eigenvalue(const SpringSystem& system, int steps) {
     alpha.push_back(a);
     // Largest eigenvalue of the tridiagonal matrix so far: the Ritz value, a lower bound.
     Eigen::VectorXd diagonal = Eigen::Map<const Eigen::VectorXd>(alpha.data(), static_cast<long>(alpha.size()));
-    Eigen::VectorXd off = beta.empty() ? Eigen::VectorXd() :
-        Eigen::Map<const Eigen::VectorXd>(beta.data(), static_cast<long>(beta.size())).eval();
+    Eigen::VectorXd off = beta.empty()
+                              ? Eigen::VectorXd()
+                              : Eigen::Map<const Eigen::VectorXd>(beta.data(), static_cast<long>(beta.size())).eval();
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver;
     solver.computeFromTridiagonal(diagonal, off, Eigen::EigenvaluesOnly);
     const double ritz = solver.eigenvalues().maxCoeff();

@@ -78,7 +78,8 @@ std::string template_svg(TemplateKind kind, int fibres_r, int fibres_s, int samp
       const double r = fibres_r == 1 ? 0.5 : static_cast<double>(i) / (fibres_r - 1);
       const double s = fibres_s == 1 ? 0.5 : static_cast<double>(j) / (fibres_s - 1);
       std::vector<Vec3> line;
-      for (int k = 0; k < samples; ++k) line.push_back(template_point(kind, r, s, static_cast<double>(k) / (samples - 1)));
+      for (int k = 0; k < samples; ++k)
+        line.push_back(template_point(kind, r, s, static_cast<double>(k) / (samples - 1)));
       svg << "<polyline points=\"" << point_list(project, line)
           << "\" fill=\"none\" stroke=\"#1f77b4\" stroke-width=\"1.6\"/>\n";
     }

@@ -12,7 +12,6 @@ namespace fascicle::springs {
 
 /// SVG document (size `pixels` x `pixels`) of `kind` with fibres_r x fibres_s fibres, each drawn
 /// through `samples` points (>= 2). Throws OptionError for counts below 2 (fibres 1 is allowed).
-std::string template_svg(TemplateKind kind, int fibres_r = 6, int fibres_s = 3, int samples = 40,
-                         int pixels = 360);
+std::string template_svg(TemplateKind kind, int fibres_r = 6, int fibres_s = 3, int samples = 40, int pixels = 360);
 
 }  // namespace fascicle::springs

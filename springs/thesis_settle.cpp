@@ -45,7 +45,8 @@ std::vector<Target> read_targets(const std::string& path, const ReadOptions& opt
     for (std::string token; fields >> token;) tokens.push_back(token);
     if (tokens.empty()) continue;
     if (tokens.size() != 4)
-      fail(ErrorCode::malformed, path, line, "expected 'index x y z', found " + std::to_string(tokens.size()) + " fields");
+      fail(ErrorCode::malformed, path, line,
+           "expected 'index x y z', found " + std::to_string(tokens.size()) + " fields");
     if (targets.size() >= options.max_elements)
       fail(ErrorCode::too_large, path, line, "more than " + std::to_string(options.max_elements) + " targets");
     errno = 0;
@@ -87,8 +88,10 @@ std::optional<LatticeShape> detect_lattice(const ThesisModel& model, const Sprin
   for (long i = 0; i < f; ++i)
     if (model.fibres[i][0] != i || model.fibres[i][1] != i + f * (nz - 1)) return std::nullopt;
   std::vector<SpringModel> models;
-  if (wanted) models.push_back(*wanted);
-  else models = {SpringModel::model6, SpringModel::model26};
+  if (wanted)
+    models.push_back(*wanted);
+  else
+    models = {SpringModel::model6, SpringModel::model26};
   SettleOptions probe;
   probe.tolerance = 0.0;
   for (SpringModel m : models) {

@@ -207,7 +207,8 @@ class GeneralVerlet final : public SpringSolver {
   // This is one half of the points (`h`): its forces, and the largest squared force at a free
   // point among them (NaN when one is not finite).
   double forces_once_half(const std::vector<double>& x, const SpringHalf& h) {
-    std::fill(force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.begin), force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.end), 0.0);
+    std::fill(force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.begin),
+              force_.begin() + 3 * static_cast<std::ptrdiff_t>(h.end), 0.0);
     const std::size_t count = h.springs.size();
     for (std::size_t k = 0; k < count; ++k) {
       const Spring& s = h.springs[k];
@@ -250,9 +251,7 @@ class GeneralVerlet final : public SpringSolver {
   }
 
   // The larger of two halves' largest squared forces; a NaN in either sticks, as in one loop.
-  static double larger(double first, double second) {
-    return first > second || std::isnan(first) ? first : second;
-  }
+  static double larger(double first, double second) { return first > second || std::isnan(first) ? first : second; }
 
   // Kinetic and spring energy of points [begin, end) (each spring seen from both ends).
   double energy_of(int begin, int end) const {
@@ -291,7 +290,7 @@ class GeneralVerlet final : public SpringSolver {
   std::vector<char> fixed_;
   std::vector<int> row_, neighbour_;
   std::vector<double> stiffness_, rest_;
-  bool once_ = false;            // a one-block system: each spring once, in two halves
+  bool once_ = false;  // a one-block system: each spring once, in two halves
   SpringHalf halves_[2];
   std::vector<double> x_, prev_, force_, partial_;
   double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
@@ -304,8 +303,8 @@ class GeneralVerlet final : public SpringSolver {
 
 void set_general_spring_once(bool enabled) { spring_once_enabled = enabled; }
 
-std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system,
-                                                  const SettleOptions& options, bool momentum) {
+std::unique_ptr<SpringSolver> make_general_verlet(const SpringSystem& system, const SettleOptions& options,
+                                                  bool momentum) {
   return std::make_unique<GeneralVerlet>(system, options, momentum);
 }
 

@@ -56,8 +56,10 @@ FASCICLE_AVX2 __m256d load4(unsigned m, const double* p) {
   return m == kFull ? _mm256_loadu_pd(p) : _mm256_maskload_pd(p, lanes_of(m));
 }
 FASCICLE_AVX2 void store4(unsigned m, double* p, __m256d v) {
-  if (m == kFull) _mm256_storeu_pd(p, v);
-  else _mm256_maskstore_pd(p, lanes_of(m), v);
+  if (m == kFull)
+    _mm256_storeu_pd(p, v);
+  else
+    _mm256_maskstore_pd(p, lanes_of(m), v);
 }
 // (carry[3], v[0], v[1], v[2]): v one lane up, the previous vector's last lane coming in at 0.
 FASCICLE_AVX2 __m256d shift_up(__m256d v, __m256d carry) {
@@ -87,8 +89,8 @@ FASCICLE_AVX2 __m256d spring_weight(unsigned m, const double* const x[3], long q
 }
 
 template <int Directions>
-__attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given, long rows,
-                                                           std::uint64_t* largest_out, double* power_out) {
+__attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given, long rows, std::uint64_t* largest_out,
+                                                           double* power_out) {
   FusedRow r = given;  // a local copy (vector stores may alias anything)
   const long nx = r.nx;
   const double* x[3] = {r.x[0], r.x[1], r.x[2]};
@@ -146,7 +148,7 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
     // Model-26: the springs of direction d from the source points at i + shift (0 or 1) in the
     // lanes where `valid` and their target exists. Sets l, returns w.
     auto spring = [&](int d, bool valid, long shift, const __m256d from[3], __m256d l[3])
-                      __attribute__((target("avx2,fma"), always_inline)) {
+        __attribute__((target("avx2,fma"), always_inline)) {
       if constexpr (Kind == 0) {
         const long source_left = left - shift;
         unsigned m = source_left >= kLanes ? kFull : source_left > 0 ? (1u << source_left) - 1u : 0u;
@@ -271,21 +273,22 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
         force[c] = _mm256_sub_pd(_mm256_add_pd(pushed, own[c]), shifted);
       }
     }
-    std::uint32_t packed = 0;  // the 4 fixed flags (fewer at the row's end)
+    std::uint32_t packed = 0;         // the 4 fixed flags (fewer at the row's end)
     if (Kind != 0 || left >= kLanes)  // a fixed-size copy is one load; a variable one, a loop
       std::memcpy(&packed, r.fixed + i, kLanes);
     else
       std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left));
     const __m256i flags = _mm256_cvtepu8_epi64(_mm_cvtsi32_si128(static_cast<int>(packed)));
     const __m256i is_free = _mm256_and_si256(_mm256_cmpeq_epi64(flags, _mm256_setzero_si256()), lanes_of(row_mask));
-    const __m256d f2 = _mm256_fmadd_pd(force[2], force[2],
-                                       _mm256_fmadd_pd(force[1], force[1], _mm256_mul_pd(force[0], force[0])));
+    const __m256d f2 =
+        _mm256_fmadd_pd(force[2], force[2], _mm256_fmadd_pd(force[1], force[1], _mm256_mul_pd(force[0], force[0])));
     const __m256i bits = _mm256_and_si256(_mm256_castpd_si256(f2), no_sign);
     largest = _mm256_blendv_epi8(largest, bits, _mm256_and_si256(is_free, _mm256_cmpgt_epi64(bits, largest)));
     __m256d v[3];
     for (int c = 0; c < 3; ++c) v[c] = _mm256_sub_pd(s[c], load4(row_mask, r.p[c] + i));
     if (r.power) {
-      const __m256d pv = _mm256_fmadd_pd(force[2], v[2], _mm256_fmadd_pd(force[1], v[1], _mm256_mul_pd(force[0], v[0])));
+      const __m256d pv =
+          _mm256_fmadd_pd(force[2], v[2], _mm256_fmadd_pd(force[1], v[1], _mm256_mul_pd(force[0], v[0])));
       fv = _mm256_add_pd(fv, _mm256_and_pd(pv, _mm256_castsi256_pd(is_free)));
     }
     if (!r.write) return;
@@ -311,8 +314,10 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
     for (long i = 0; i < nx; i += kLanes) {
       {
         if (full && i + kLanes < nx) {
-          if (arrays) vector(i, std::integral_constant<int, 2>());
-          else vector(i, std::integral_constant<int, 1>());
+          if (arrays)
+            vector(i, std::integral_constant<int, 2>());
+          else
+            vector(i, std::integral_constant<int, 1>());
           continue;
         }
       }
@@ -359,8 +364,10 @@ __attribute__((target("avx2,fma"))) void fused_rows_avx2_t(const FusedRow& given
 }  // namespace
 
 void fused_rows_avx2(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out) {
-  if (r.directions == 3) fused_rows_avx2_t<3>(r, rows, largest_out, power_out);
-  else fused_rows_avx2_t<kMaxDirections>(r, rows, largest_out, power_out);
+  if (r.directions == 3)
+    fused_rows_avx2_t<3>(r, rows, largest_out, power_out);
+  else
+    fused_rows_avx2_t<kMaxDirections>(r, rows, largest_out, power_out);
 }
 
 }  // namespace fascicle::springs::detail

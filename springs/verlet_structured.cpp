@@ -79,7 +79,7 @@ namespace fascicle::springs::detail {
 namespace {
 std::atomic<bool> g_simd_enabled{true};
 std::atomic<bool> g_avx512_enabled{true};
-}
+}  // namespace
 
 void set_structured_simd(bool enabled) { g_simd_enabled = enabled; }
 void set_structured_avx512(bool enabled) { g_avx512_enabled = enabled; }
@@ -214,11 +214,10 @@ inline __attribute__((always_inline)) std::uint64_t row_body(const Kernel& g, lo
   return largest;
 }
 
-
 using RowFunction = std::uint64_t (*)(const Kernel&, long, long, double*, double*);
-#define FASCICLE_ROW(name, write, uk, uab, d)                                                   \
+#define FASCICLE_ROW(name, write, uk, uab, d)                                                           \
   FASCICLE_CLONES std::uint64_t name(const Kernel& g, long p0, long p1, double* power, double* terms) { \
-    return row_body<write, uk, uab>(g, p0, p1, power, terms, std::make_index_sequence<d>());         \
+    return row_body<write, uk, uab>(g, p0, p1, power, terms, std::make_index_sequence<d>());            \
   }
 FASCICLE_ROW(force6, false, false, false, 3)
 FASCICLE_ROW(force26, false, false, false, 13)
@@ -250,8 +249,10 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 
   return m == 0xFF ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, p);
 }
 __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m, double* p, __m512d v) {
-  if (m == 0xFF) _mm512_storeu_pd(p, v);
-  else _mm512_mask_storeu_pd(p, m, v);
+  if (m == 0xFF)
+    _mm512_storeu_pd(p, v);
+  else
+    _mm512_mask_storeu_pd(p, m, v);
 }
 
 // The springs from the 8 points s (lanes) to the points at index q of the position arrays x,
@@ -267,8 +268,8 @@ __attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m,
 // library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
 template <bool Masked>
 __attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(__mmask8 m, const double* const x[3],
-                                                                               long q, const __m512d s[3],
-                                                                               __m512d k, __m512d l[3]) {
+                                                                               long q, const __m512d s[3], __m512d k,
+                                                                               __m512d l[3]) {
   for (int c = 0; c < 3; ++c)
     l[c] = Masked ? _mm512_maskz_sub_pd(m, load8(m, x[c] + q), s[c]) : _mm512_sub_pd(_mm512_loadu_pd(x[c] + q), s[c]);
   const __m512d l2 = _mm512_fmadd_pd(l[2], l[2], _mm512_fmadd_pd(l[1], l[1], _mm512_mul_pd(l[0], l[0])));
@@ -346,7 +347,7 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     // Model-26: the springs of direction d evaluated from the source points at i + shift
     // (0 or 1; see below) in the lanes where `valid` and their target exists. Sets l, returns w.
     auto spring = [&](int d, bool valid, long shift, const __m512d from[3], __m512d l[3])
-                      __attribute__((target("avx512f"), always_inline)) {
+        __attribute__((target("avx512f"), always_inline)) {
       if constexpr (Kind == 0) {
         // Lanes whose source (i + shift + lane) and target (one more for dx = +1, one less for
         // dx = -1) exist.
@@ -379,11 +380,10 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
       // groups first (`minus`). (A row around the tile, not integrated, needs no along-x
       // springs, which push nowhere, nor the groups whose target row is outside the tile.)
       // Kind 0 numbers the directions by r.group, the other kinds by 4 g + slot.
-      const __mmask8 next_mask = Kind == 0 && left <= 8 ? static_cast<__mmask8>(row_mask >> 1)
-                                                         : static_cast<__mmask8>(0xFF);
+      const __mmask8 next_mask =
+          Kind == 0 && left <= 8 ? static_cast<__mmask8>(row_mask >> 1) : static_cast<__mmask8>(0xFF);
       __m512d next[3];  // the sources of the dx = -1 springs
-      for (int c = 0; c < 3; ++c)
-        next[c] = Kind == 0 ? load8(next_mask, x[c] + i + 1) : _mm512_loadu_pd(x[c] + i + 1);
+      for (int c = 0; c < 3; ++c) next[c] = Kind == 0 ? load8(next_mask, x[c] + i + 1) : _mm512_loadu_pd(x[c] + i + 1);
       __m512d own_up[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};  // dx = +1
       __m512d minus[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};   // dx = -1
       if (Kind != 0 || r.along_x >= 0) {
@@ -432,41 +432,41 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
       // at lane 0: one shift and one carry for both.
       for (int c = 0; c < 3; ++c) {
         const __m512d back = _mm512_sub_pd(minus[c], along[c]);
-        const __m512d back_up = _mm512_castsi512_pd(
-            _mm512_alignr_epi64(_mm512_castpd_si512(back), _mm512_castpd_si512(minus_carry[c]), 7));
+        const __m512d back_up =
+            _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(back), _mm512_castpd_si512(minus_carry[c]), 7));
         minus_carry[c] = back;
         own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), back_up);
       }
     } else {
 #pragma GCC unroll 13
-    for (int d = 0; d < Directions; ++d) {
-      if (!r.valid[d]) continue;
-      // Lanes whose target exists: i + dx in [0, nx).
-      __mmask8 m = row_mask;
-      if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
-      if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
-      const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
-      __m512d l[3];
-      const __m512d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
-      if (d == r.along_x) {
-        for (int c = 0; c < 3; ++c) {
-          along[c] = _mm512_mul_pd(w, l[c]);
-          own[c] = _mm512_add_pd(own[c], along[c]);
-        }
-      } else {
-        // f = w l fused into the sums: +f to the own point, -f to the target
-        for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
-        if (r.push[d][0]) {
+      for (int d = 0; d < Directions; ++d) {
+        if (!r.valid[d]) continue;
+        // Lanes whose target exists: i + dx in [0, nx).
+        __mmask8 m = row_mask;
+        if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
+        if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
+        const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
+        __m512d l[3];
+        const __m512d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
+        if (d == r.along_x) {
           for (int c = 0; c < 3; ++c) {
-            // The direction (0, 0, 1) makes the only push from plane k into row (j, k + 1), the
-            // first (see sweep): stored without reading the row (the same bits as a zeroed row's).
-            double* target = r.push[d][c] + i + r.dx[d];
-            const __m512d before = d == kModel6FirstPush ? _mm512_setzero_pd() : load8(m, target);
-            store8(m, target, _mm512_fnmadd_pd(w, l[c], before));
+            along[c] = _mm512_mul_pd(w, l[c]);
+            own[c] = _mm512_add_pd(own[c], along[c]);
+          }
+        } else {
+          // f = w l fused into the sums: +f to the own point, -f to the target
+          for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
+          if (r.push[d][0]) {
+            for (int c = 0; c < 3; ++c) {
+              // The direction (0, 0, 1) makes the only push from plane k into row (j, k + 1), the
+              // first (see sweep): stored without reading the row (the same bits as a zeroed row's).
+              double* target = r.push[d][c] + i + r.dx[d];
+              const __m512d before = d == kModel6FirstPush ? _mm512_setzero_pd() : load8(m, target);
+              store8(m, target, _mm512_fnmadd_pd(w, l[c], before));
+            }
           }
         }
       }
-    }
     }
     if (!r.integrate) return;
     // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
@@ -477,8 +477,8 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
       if constexpr (Directions == kMaxDirections) {
         force[c] = _mm512_add_pd(pushed, own[c]);
       } else {
-        const __m512d shifted = _mm512_castsi512_pd(
-            _mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
+        const __m512d shifted =
+            _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
         carry[c] = along[c];
         force[c] = _mm512_sub_pd(_mm512_add_pd(pushed, own[c]), shifted);
       }
@@ -488,13 +488,14 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     const __m128i fixed_bytes = _mm_cvtsi64_si128(static_cast<long long>(packed));
     const __mmask8 is_fixed = _mm512_test_epi64_mask(_mm512_cvtepu8_epi64(fixed_bytes), _mm512_set1_epi64(0xFF));
     const __mmask8 is_free = static_cast<__mmask8>(row_mask & ~is_fixed);
-    const __m512d f2 = _mm512_fmadd_pd(force[2], force[2],
-                                       _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
+    const __m512d f2 =
+        _mm512_fmadd_pd(force[2], force[2], _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
     largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
     __m512d v[3];
     for (int c = 0; c < 3; ++c) v[c] = _mm512_sub_pd(s[c], load8(row_mask, r.p[c] + i));
     if (r.power) {
-      const __m512d pv = _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
+      const __m512d pv =
+          _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
       fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
     }
     if (!r.write) return;
@@ -521,8 +522,10 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
     for (long i = 0; i < nx; i += 8) {
       if constexpr (Directions == kMaxDirections) {
         if (full && i + 8 < nx) {
-          if (arrays) vector(i, std::integral_constant<int, 2>());
-          else vector(i, std::integral_constant<int, 1>());
+          if (arrays)
+            vector(i, std::integral_constant<int, 2>());
+          else
+            vector(i, std::integral_constant<int, 1>());
           continue;
         }
       }
@@ -565,8 +568,10 @@ __attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& give
 }
 
 void fused_rows_avx512(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out) {
-  if (r.directions == 3) fused_rows_avx512_t<3>(r, rows, largest_out, power_out);
-  else fused_rows_avx512_t<kMaxDirections>(r, rows, largest_out, power_out);
+  if (r.directions == 3)
+    fused_rows_avx512_t<3>(r, rows, largest_out, power_out);
+  else
+    fused_rows_avx512_t<kMaxDirections>(r, rows, largest_out, power_out);
 }
 #pragma GCC diagnostic pop
 #endif
@@ -586,9 +591,13 @@ struct LineAligned {
   }
   void deallocate(T* p, std::size_t) { std::free(p); }
   template <class U>
-  bool operator==(const LineAligned<U>&) const { return true; }
+  bool operator==(const LineAligned<U>&) const {
+    return true;
+  }
   template <class U>
-  bool operator!=(const LineAligned<U>&) const { return false; }
+  bool operator!=(const LineAligned<U>&) const {
+    return false;
+  }
 };
 using AlignedDoubles = std::vector<double, LineAligned<double>>;
 
@@ -627,7 +636,9 @@ class StructuredVerlet final : public SpringSolver {
                    std::vector<std::vector<double>> stiffness, bool momentum)
       : options_(options),
         coefficients_(momentum ? momentum_coefficients(system) : verlet_coefficients(system, options)),
-        shape_(shape), stiffness_(std::move(stiffness)), momentum_(momentum) {
+        shape_(shape),
+        stiffness_(std::move(stiffness)),
+        momentum_(momentum) {
     n_ = static_cast<long>(system.positions.size());
     rows_ = static_cast<long>(shape.ny) * shape.nz;
     // Rows padded to a multiple of 8 points: with the 64-byte aligned arrays every row, and so
@@ -737,39 +748,42 @@ class StructuredVerlet final : public SpringSolver {
   double energy() override {
     const double dt2 = coefficients_.dt * coefficients_.dt;
     const long nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
-    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
-      for (long row = range.begin(); row != range.end(); ++row) {
-        const long base = row * stride_, j = row % ny, k = row / ny;
-        const double* __restrict x = x_[0].data() + base;
-        const double* __restrict y = x_[1].data() + base;
-        const double* __restrict z = x_[2].data() + base;
-        const double* __restrict px = p_[0].data() + base;
-        const double* __restrict py = p_[1].data() + base;
-        const double* __restrict pz = p_[2].data() + base;
-        const double* __restrict mass = coefficients_.mass.data() + base;
-        double e = 0.0;
+    tbb::parallel_for(
+        tbb::blocked_range<long>(0, rows_, grain_),
+        [&](const tbb::blocked_range<long>& range) {
+          for (long row = range.begin(); row != range.end(); ++row) {
+            const long base = row * stride_, j = row % ny, k = row / ny;
+            const double* __restrict x = x_[0].data() + base;
+            const double* __restrict y = x_[1].data() + base;
+            const double* __restrict z = x_[2].data() + base;
+            const double* __restrict px = p_[0].data() + base;
+            const double* __restrict py = p_[1].data() + base;
+            const double* __restrict pz = p_[2].data() + base;
+            const double* __restrict mass = coefficients_.mass.data() + base;
+            double e = 0.0;
 #pragma omp simd reduction(+ : e)
-        for (long i = 0; i < nx; ++i) {
-          const double vx = x[i] - px[i], vy = y[i] - py[i], vz = z[i] - pz[i];
-          e += 0.5 * mass[i] * (vx * vx + vy * vy + vz * vz) / dt2;
-        }
-        for (int d = 0; d < directions_; ++d) {
-          if (j + dir_[d][1] < 0 || j + dir_[d][1] >= ny || k + dir_[d][2] >= nz) continue;
-          const long i0 = dir_[d][0] < 0 ? 1 : 0, i1 = dir_[d][0] > 0 ? nx - 1 : nx;
-          const double* __restrict ks = stiffness_[d].data() + base;
-          const double* __restrict qx = x + offset_[d];
-          const double* __restrict qy = y + offset_[d];
-          const double* __restrict qz = z + offset_[d];
+            for (long i = 0; i < nx; ++i) {
+              const double vx = x[i] - px[i], vy = y[i] - py[i], vz = z[i] - pz[i];
+              e += 0.5 * mass[i] * (vx * vx + vy * vy + vz * vz) / dt2;
+            }
+            for (int d = 0; d < directions_; ++d) {
+              if (j + dir_[d][1] < 0 || j + dir_[d][1] >= ny || k + dir_[d][2] >= nz) continue;
+              const long i0 = dir_[d][0] < 0 ? 1 : 0, i1 = dir_[d][0] > 0 ? nx - 1 : nx;
+              const double* __restrict ks = stiffness_[d].data() + base;
+              const double* __restrict qx = x + offset_[d];
+              const double* __restrict qy = y + offset_[d];
+              const double* __restrict qz = z + offset_[d];
 #pragma omp simd reduction(+ : e)
-          for (long i = i0; i < i1; ++i) {
-            const double lx = qx[i] - x[i], ly = qy[i] - y[i], lz = qz[i] - z[i];
-            const double stretch = ks[i] * std::sqrt(lx * lx + ly * ly + lz * lz) - 1.0;  // k (|l| - rest)
-            e += 0.5 * stretch * stretch / ks[i];
+              for (long i = i0; i < i1; ++i) {
+                const double lx = qx[i] - x[i], ly = qy[i] - y[i], lz = qz[i] - z[i];
+                const double stretch = ks[i] * std::sqrt(lx * lx + ly * ly + lz * lz) - 1.0;  // k (|l| - rest)
+                e += 0.5 * stretch * stretch / ks[i];
+              }
+            }
+            row_energy_[row] = e;
           }
-        }
-        row_energy_[row] = e;
-      }
-    }, tbb::simple_partitioner());
+        },
+        tbb::simple_partitioner());
     double total = 0.0;
     for (long row = 0; row < rows_; ++row) total += row_energy_[row];
     return total;
@@ -822,8 +836,10 @@ class StructuredVerlet final : public SpringSolver {
         sum += k;
         ++count;
       }
-      if (count == 0 || hi - lo > 1e-12 * hi) uniform_k_ = false;
-      else k_uniform_[d] = sum / count;
+      if (count == 0 || hi - lo > 1e-12 * hi)
+        uniform_k_ = false;
+      else
+        k_uniform_[d] = sum / count;
     }
     if (!uniform_k_) return;
     // The checked boundary path reads the arrays: give them the same values.
@@ -881,12 +897,13 @@ class StructuredVerlet final : public SpringSolver {
   // Rows r .. r + count - 1 of one plane on a vector path (AVX-512 or AVX2), alike in their springs and pushes
   // (fused_rows_avx512_t). `integrate`: rows of the tile (own springs, then each row is complete
   // and integrated); else rows around it (pushes into the tile only).
-  void process_rows(Ring& ring, long r, long count, const Tile& tile, bool integrate, bool forward_only,
-                    bool write) {
+  void process_rows(Ring& ring, long r, long count, const Tile& tile, bool integrate, bool forward_only, bool write) {
 #ifdef FASCICLE_HAVE_AVX512_KERNEL
     const FusedRow row = fused_row(ring, r, tile, integrate, forward_only, write);
-    if (avx512_) fused_rows_avx512(row, count, row_largest_.data() + r, row_power_.data() + r);
-    else fused_rows_avx2(row, count, row_largest_.data() + r, row_power_.data() + r);
+    if (avx512_)
+      fused_rows_avx512(row, count, row_largest_.data() + r, row_power_.data() + r);
+    else
+      fused_rows_avx2(row, count, row_largest_.data() + r, row_power_.data() + r);
 #else
     (void)ring, (void)r, (void)count, (void)tile, (void)integrate, (void)forward_only, (void)write;
 #endif
@@ -952,26 +969,29 @@ class StructuredVerlet final : public SpringSolver {
     const Kernel g = kernel();
     const int nx = shape_.nx, ny = shape_.ny, nz = shape_.nz;
     const bool model6 = directions_ == 3;
-    tbb::parallel_for(tbb::blocked_range<long>(0, rows_, grain_), [&](const tbb::blocked_range<long>& range) {
-      std::vector<double> terms(static_cast<std::size_t>(nx));  // a row's power terms (row_body)
-      for (long row = range.begin(); row != range.end(); ++row) {
-        const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
-        const long base = row * stride_;
-        std::uint64_t largest = 0;
-        double power = 0.0;
-        auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
-        if (j == 0 || k == 0 || j == ny - 1 || k == nz - 1 || nx < 3 || row_has_fixed_[row]) {
-          for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write, &power));
-        } else {
-          take(boundary_point(g, base, 0, j, k, write, &power));
-          const long p0 = base + 1, p1 = base + nx - 1;
-          take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power, terms.data()));
-          take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
-        }
-        row_largest_[row] = largest;
-        row_power_[row] = power;
-      }
-    }, tbb::simple_partitioner());
+    tbb::parallel_for(
+        tbb::blocked_range<long>(0, rows_, grain_),
+        [&](const tbb::blocked_range<long>& range) {
+          std::vector<double> terms(static_cast<std::size_t>(nx));  // a row's power terms (row_body)
+          for (long row = range.begin(); row != range.end(); ++row) {
+            const int j = static_cast<int>(row % ny), k = static_cast<int>(row / ny);
+            const long base = row * stride_;
+            std::uint64_t largest = 0;
+            double power = 0.0;
+            auto take = [&largest](std::uint64_t v) { largest = v > largest ? v : largest; };
+            if (j == 0 || k == 0 || j == ny - 1 || k == nz - 1 || nx < 3 || row_has_fixed_[row]) {
+              for (int i = 0; i < nx; ++i) take(boundary_point(g, base + i, i, j, k, write, &power));
+            } else {
+              take(boundary_point(g, base, 0, j, k, write, &power));
+              const long p0 = base + 1, p1 = base + nx - 1;
+              take(kRows[write][uniform_k_][uniform_ab_][model6 ? 0 : 1](g, p0, p1, &power, terms.data()));
+              take(boundary_point(g, base + nx - 1, nx - 1, j, k, write, &power));
+            }
+            row_largest_[row] = largest;
+            row_power_[row] = power;
+          }
+        },
+        tbb::simple_partitioner());
     std::uint64_t largest = 0;
     power_ = 0.0;
     for (long row = 0; row < rows_; ++row) {
@@ -993,44 +1013,47 @@ class StructuredVerlet final : public SpringSolver {
   double sweep(bool write) {
     if (!simd_) return sweep_gather(write);
     const long ny = shape_.ny;
-    tbb::parallel_for(tbb::blocked_range<long>(0, slabs_ * strips_, 1), [&](const tbb::blocked_range<long>& range) {
-      Ring& ring = rings_.local();
-      ring.reset(ny, stride_);
-      for (long task = range.begin(); task != range.end(); ++task) {
-        Tile tile;
-        tile.k0 = (task / strips_) * slab_;
-        tile.k1 = std::min<long>(shape_.nz, tile.k0 + slab_);
-        tile.j0 = (task % strips_) * strip_;
-        tile.j1 = std::min<long>(ny, tile.j0 + strip_);
-        // The strip's rows but its first and last are alike (their targets j - 1 .. j + 1 are
-        // all in the strip and the lattice): one run. The first and last row push into one row
-        // fewer each.
-        auto plane = [&](long k, bool integrate, bool forward_only) {
-          const long r0 = ny * k;
-          if (tile.j0 > 0) process_rows(ring, r0 + tile.j0 - 1, 1, tile, false, forward_only, write);
-          process_rows(ring, r0 + tile.j0, 1, tile, integrate, forward_only, write);
-          if (tile.j1 - tile.j0 > 2)
-            process_rows(ring, r0 + tile.j0 + 1, tile.j1 - tile.j0 - 2, tile, integrate, forward_only, write);
-          if (tile.j1 - tile.j0 > 1) process_rows(ring, r0 + tile.j1 - 1, 1, tile, integrate, forward_only, write);
-          if (tile.j1 < ny) process_rows(ring, r0 + tile.j1, 1, tile, false, forward_only, write);
-        };
-        // The first push into row (j, k + 1) stores instead of adding: model-6 the one of row
-        // (j, k) in direction (0, 0, 1), model-26 the one of row (j - 1, k) in group (1, 1) (rows
-        // go in index order, the row before the strip included, and nothing pushes into k + 1
-        // from plane k - 1). Only rows without such a push are zeroed: the first plane of the
-        // lattice (no plane before it) and, model-26, row 0 of each plane.
-        const bool model26 = directions_ == kMaxDirections;
-        if (tile.k0 == 0)
-          for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j);
-        else if (model26 && tile.j0 == 0)
-          ring.zero(ny * tile.k0);
-        if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
-        for (long k = tile.k0; k < tile.k1; ++k) {
-          if (model26 && tile.j0 == 0 && k + 1 < tile.k1) ring.zero(ny * (k + 1));
-          plane(k, true, false);
-        }
-      }
-    }, tbb::simple_partitioner());
+    tbb::parallel_for(
+        tbb::blocked_range<long>(0, slabs_ * strips_, 1),
+        [&](const tbb::blocked_range<long>& range) {
+          Ring& ring = rings_.local();
+          ring.reset(ny, stride_);
+          for (long task = range.begin(); task != range.end(); ++task) {
+            Tile tile;
+            tile.k0 = (task / strips_) * slab_;
+            tile.k1 = std::min<long>(shape_.nz, tile.k0 + slab_);
+            tile.j0 = (task % strips_) * strip_;
+            tile.j1 = std::min<long>(ny, tile.j0 + strip_);
+            // The strip's rows but its first and last are alike (their targets j - 1 .. j + 1 are
+            // all in the strip and the lattice): one run. The first and last row push into one row
+            // fewer each.
+            auto plane = [&](long k, bool integrate, bool forward_only) {
+              const long r0 = ny * k;
+              if (tile.j0 > 0) process_rows(ring, r0 + tile.j0 - 1, 1, tile, false, forward_only, write);
+              process_rows(ring, r0 + tile.j0, 1, tile, integrate, forward_only, write);
+              if (tile.j1 - tile.j0 > 2)
+                process_rows(ring, r0 + tile.j0 + 1, tile.j1 - tile.j0 - 2, tile, integrate, forward_only, write);
+              if (tile.j1 - tile.j0 > 1) process_rows(ring, r0 + tile.j1 - 1, 1, tile, integrate, forward_only, write);
+              if (tile.j1 < ny) process_rows(ring, r0 + tile.j1, 1, tile, false, forward_only, write);
+            };
+            // The first push into row (j, k + 1) stores instead of adding: model-6 the one of row
+            // (j, k) in direction (0, 0, 1), model-26 the one of row (j - 1, k) in group (1, 1) (rows
+            // go in index order, the row before the strip included, and nothing pushes into k + 1
+            // from plane k - 1). Only rows without such a push are zeroed: the first plane of the
+            // lattice (no plane before it) and, model-26, row 0 of each plane.
+            const bool model26 = directions_ == kMaxDirections;
+            if (tile.k0 == 0)
+              for (long j = tile.j0; j < tile.j1; ++j) ring.zero(j);
+            else if (model26 && tile.j0 == 0)
+              ring.zero(ny * tile.k0);
+            if (tile.k0 > 0) plane(tile.k0 - 1, false, true);
+            for (long k = tile.k0; k < tile.k1; ++k) {
+              if (model26 && tile.j0 == 0 && k + 1 < tile.k1) ring.zero(ny * (k + 1));
+              plane(k, true, false);
+            }
+          }
+        },
+        tbb::simple_partitioner());
     std::uint64_t largest = 0;
     power_ = 0.0;
     for (long row = 0; row < rows_; ++row) {
@@ -1072,8 +1095,7 @@ class StructuredVerlet final : public SpringSolver {
 std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system, const SettleOptions& options,
                                                      const LatticeShape& shape, bool momentum) {
   const long n = static_cast<long>(shape.nx) * shape.ny * shape.nz;
-  if (shape.nx < 1 || shape.ny < 1 || shape.nz < 1 || n != static_cast<long>(system.positions.size()))
-    return nullptr;
+  if (shape.nx < 1 || shape.ny < 1 || shape.nz < 1 || n != static_cast<long>(system.positions.size())) return nullptr;
   const auto& dirs = half_offsets(shape.model);
   std::vector<std::vector<double>> stiffness(dirs.size(), std::vector<double>(n, 0.0));
   for (const Spring& s : system.springs) {
@@ -1083,8 +1105,8 @@ std::unique_ptr<SpringSolver> make_structured_verlet(const SpringSystem& system,
     int found = -1;
     for (std::size_t d = 0; d < dirs.size(); ++d)
       if (dirs[d] == delta) found = static_cast<int>(d);
-    if (found < 0) return nullptr;                       // not a neighbour of this model
-    if (stiffness[found][s.a] != 0.0) return nullptr;    // duplicate spring
+    if (found < 0) return nullptr;                                         // not a neighbour of this model
+    if (stiffness[found][s.a] != 0.0) return nullptr;                      // duplicate spring
     if (!(std::abs(s.stiffness * s.rest - 1.0) <= 1e-12)) return nullptr;  // k != 1 / rest
     stiffness[found][s.a] = s.stiffness;
   }

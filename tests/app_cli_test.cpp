@@ -32,9 +32,7 @@ Run run(const test::TempDir& dir, const std::string& args) {
   return {code, ss.str()};
 }
 
-void write_text(const std::string& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
+void write_text(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 
 // Expects the exit code, a single "fascicle: error:" line mentioning `needle`, and no output.
 void expect_failure(const test::TempDir& dir, const std::string& input, ErrorCode code, const std::string& needle,
@@ -146,7 +144,8 @@ TEST_CASE("a failed repair, sphere or decompose still writes its report", "[app]
     INFO(command);
     const std::string out = dir.file(std::string(command) + "-out.vtk");  // a mesh or polylines
     const std::string report = dir.file(std::string(command) + ".json");
-    const Run r = run(dir, std::string("--quiet ") + command + " '" + input + "' -o '" + out + "' --report '" + report + "'");
+    const Run r =
+        run(dir, std::string("--quiet ") + command + " '" + input + "' -o '" + out + "' --report '" + report + "'");
     INFO("stderr: " << r.err);
     CHECK(r.code == exit_code(ErrorCode::repair_failed));
     CHECK_FALSE(fs::exists(out));
@@ -188,8 +187,8 @@ TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   // Out of (0, 1]: a one-line option error, its exit code, no output.
   for (const char* bad : {"0", "1.5"}) {
     INFO(bad);
-    const Run r = run(dir, "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file("bad.vtk") +
-                               "' --edge-cell " + bad);
+    const Run r = run(
+        dir, "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file("bad.vtk") + "' --edge-cell " + bad);
     CHECK(r.code == exit_code(ErrorCode::invalid_option));
     CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
     CHECK(r.err.find("edge") != std::string::npos);
@@ -205,7 +204,8 @@ TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   // The batch passes it on to every muscle.
   fs::create_directories(dir.file("in"));
   fs::copy_file(dir.file("capsule.off"), dir.file("in/capsule.off"));
-  const Run batch = run(dir, "--quiet batch '" + dir.file("in") + "' -o '" + dir.file("out") + "' --jobs 1 --edge-cell 0.5");
+  const Run batch =
+      run(dir, "--quiet batch '" + dir.file("in") + "' -o '" + dir.file("out") + "' --jobs 1 --edge-cell 0.5");
   INFO(batch.err);
   REQUIRE(batch.code == 0);
   std::ifstream bin_report(dir.file("out/capsule.report.json"));
@@ -213,9 +213,9 @@ TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   CHECK(nlohmann::json::parse(bin_report).at("attempts").at(0).at("edge_cell") == 0.5);
 
   FASCICLE_REQUIRE_DATA();
-  const Run bench = run(dir, "bench decompose --data '" + test::data_dir() +
-                                 "' --repeat 1 --skip-templates --skip-corpus --edge-cell 0.5 --json '" +
-                                 dir.file("b.json") + "'");
+  const Run bench =
+      run(dir, "bench decompose --data '" + test::data_dir() +
+                   "' --repeat 1 --skip-templates --skip-corpus --edge-cell 0.5 --json '" + dir.file("b.json") + "'");
   INFO(bench.err);
   REQUIRE(bench.code == 0);
   std::ifstream bin(dir.file("b.json"));

@@ -79,7 +79,8 @@ TEST_CASE("the installed program runs from its own folder with its own libraries
                           "' --report '" + dir.file("decompose.json") + "'") == 0);
   CHECK(fs::is_regular_file(dir.file("fibres.vtk")));
   CHECK(nlohmann::json::parse(read_text(dir.file("decompose.json")))["status"] == "ok");
-  REQUIRE(test::run_command(run + "sample --kind capsule --inject inner_shell -o '" + dir.file("shells.off") + "'") == 0);
+  REQUIRE(test::run_command(run + "sample --kind capsule --inject inner_shell -o '" + dir.file("shells.off") + "'") ==
+          0);
   REQUIRE(test::run_command("env -u FASCICLE_WRAP_WORKER " + run + "repair '" + dir.file("shells.off") + "' -o '" +
                             dir.file("wrapped.off") + "' --components merge --report '" + dir.file("repair.json") +
                             "'") == 0);
@@ -94,8 +95,8 @@ TEST_CASE("another CMake project builds against the installed library and decomp
   test::TempDir dir;
   const fs::path moved = install_and_move(dir);
   const fs::path include = moved / "include" / "fascicle";
-  for (const char* header : {"fibres/decompose.h", "geometry/mesh.h", "repair/repair.h", "morph/sphere_map.h",
-                             "springs/settle.h"})
+  for (const char* header :
+       {"fibres/decompose.h", "geometry/mesh.h", "repair/repair.h", "morph/sphere_map.h", "springs/settle.h"})
     CHECK(fs::is_regular_file(include / header));
   CHECK_FALSE(fs::exists(include / "repair" / "detail"));  // CGAL inside; not part of the interface
   const std::string cmake = "'" + std::string(FASCICLE_CMAKE_COMMAND) + "' ";

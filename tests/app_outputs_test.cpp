@@ -62,11 +62,13 @@ TEST_CASE("decompose checks every output before the work and leaves no file of a
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --report " + dir.file("missing/r.json")) == 11);
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --write-repaired " + dir.file("m.xyz")) == 5);
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --fe-mesh " + dir.file("t.vtk")) == 5);
-  CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --fe-mesh " + dir.file("t.vtu") + " --fe-cells 5") == 18);
+  CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --fe-mesh " + dir.file("t.vtu") + " --fe-cells 5") ==
+        18);
   // A bad fibre extension with a good repaired-mesh path: neither file appears.
   CHECK(run("decompose " + muscle + " -o " + dir.file("f.xyz") + " --write-repaired " + dir.file("m.off")) == 5);
   CHECK_FALSE(fs::exists(dir.file("m.off")));
-  CHECK(run("decompose " + muscle + " -o " + dir.file("missing/f.vtk") + " --write-repaired " + dir.file("m.off")) == 11);
+  CHECK(run("decompose " + muscle + " -o " + dir.file("missing/f.vtk") + " --write-repaired " + dir.file("m.off")) ==
+        11);
   CHECK_FALSE(fs::exists(dir.file("m.off")));
   // --check-options says whether the options and outputs are good without reading the input.
   CHECK(run("decompose " + bogus + " -o " + dir.file("f.vtk") + " --check-options") == 0);
@@ -114,7 +116,8 @@ TEST_CASE("fibre files convert between every fibre format and keep their lattice
   CHECK(read_polygon_soup(dir.file("m.vtk")).polygons.size() == capsule().triangles.size());
 }
 
-TEST_CASE("batch resumes only what was asked for the same way, and takes every decompose option", "[app][outputs][batch]") {
+TEST_CASE("batch resumes only what was asked for the same way, and takes every decompose option",
+          "[app][outputs][batch]") {
   test::TempDir dir;
   const fs::path in = dir.path() / "in";
   fs::create_directories(in);
@@ -157,7 +160,8 @@ TEST_CASE("batch resumes only what was asked for the same way, and takes every d
   CHECK(fs::last_write_time(out / "b.csv") == csv_stamp);
   // A decompose option batch did not take before (every one is passed through now).
   const fs::path out2 = dir.path() / "out2";
-  CHECK(run("batch " + (in / "a.off").string() + " -o " + out2.string() + " --untangle false --sphere-method tutte "
+  CHECK(run("batch " + (in / "a.off").string() + " -o " + out2.string() +
+            " --untangle false --sphere-method tutte "
             "--max-landmark-distance 0.3 --landmark-twists 0 45") == 0);
   CHECK(read_polylines((out2 / "a.vtk").string()).lines.size() == 100);
 }
@@ -191,13 +195,15 @@ TEST_CASE("help, suggestions, global options anywhere, errors that name the opti
   // An option error names the option, not the field.
   CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --end-fraction 0.9").find("--end-fraction") !=
         std::string::npos);
-  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --fibres 3").find("--fibres:") != std::string::npos);
+  CHECK(output_of("decompose " + muscle + " -o " + dir.file("f.vtk") + " --fibres 3").find("--fibres:") !=
+        std::string::npos);
   // Quality levels set the fibre count and resolution, explicit values win.
   REQUIRE(run("decompose " + muscle + " -o " + dir.file("d.vtk") + " --quality draft") == 0);
   const Polylines draft = read_polylines(dir.file("d.vtk"));
   CHECK(draft.lines.size() == 36);
   CHECK(draft.lines.front().size() == 9);
-  REQUIRE(run("decompose " + muscle + " -o " + dir.file("e.vtk") + " --quality draft --fibres 49 --resolution 11") == 0);
+  REQUIRE(run("decompose " + muscle + " -o " + dir.file("e.vtk") + " --quality draft --fibres 49 --resolution 11") ==
+          0);
   const Polylines explicit_values = read_polylines(dir.file("e.vtk"));
   CHECK(explicit_values.lines.size() == 49);
   CHECK(explicit_values.lines.front().size() == 11);
@@ -221,7 +227,8 @@ TEST_CASE("architecture from check, decompose and batch, and an OpenSim table ov
   // check measures the same fibres the same way; --length-unit m scales the lengths.
   REQUIRE(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("b.csv")) == 0);
   CHECK(test::read_text(dir.file("b.csv")).rfind("fibres,volume_m3,", 0) == 0);
-  REQUIRE(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("m.json") + " --length-unit m") == 0);
+  REQUIRE(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("m.json") +
+              " --length-unit m") == 0);
   CHECK(read_json(dir.file("m.json")).at("muscle_length_m").get<double>() ==
         Approx(1000.0 * arch.at("muscle_length_m").get<double>()));
   CHECK(run("check " + dir.file("f.vtk") + " " + muscle + " --architecture " + dir.file("a.txt")) == 5);

@@ -14,7 +14,8 @@ namespace fascicle::test {
 
 /// Decomposes `muscle` into `out_dir`/m.vtk with the extra options `extra` and returns its report
 /// (`out_dir`/m.json). Checks the exit code is 0 (passed) or 19 (written, quality check failed).
-inline nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir, const std::string& extra) {
+inline nlohmann::json decompose_report(const std::string& muscle, const std::string& out_dir,
+                                       const std::string& extra) {
   const std::string report = out_dir + "/m.json";
   const int code = run_command(program() + " -q decompose " + muscle + " -o " + out_dir + "/m.vtk --report " + report +
                                " --keep-failed --retry false " + extra + " 2>/dev/null");

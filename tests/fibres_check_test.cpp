@@ -20,8 +20,8 @@
 #include <sstream>
 
 using namespace fascicle;
-using test::read_text;
 using fascicle::test::TempDir;
+using test::read_text;
 
 namespace {
 
@@ -222,7 +222,8 @@ TEST_CASE("the grid-accelerated inside test agrees with the exact test point by 
   REQUIRE(expected_outside > 100);
   CHECK(report.outside == expected_outside);
   for (const OutsidePoint& o : report.outside_examples) {
-    CHECK(query.side(fibres.lines[static_cast<std::size_t>(o.fibre)][static_cast<std::size_t>(o.point)]) != Side::inside);
+    CHECK(query.side(fibres.lines[static_cast<std::size_t>(o.fibre)][static_cast<std::size_t>(o.point)]) !=
+          Side::inside);
     CHECK(o.distance == Approx(query.closest_point(o.position).distance));
   }
 }
@@ -267,7 +268,7 @@ TEST_CASE("a folded lattice has inverted cells and a mirrored one has none", "[f
   REQUIRE_FALSE(report.inverted_examples.empty());
   CHECK(static_cast<long>(report.inverted_examples.size()) == std::min<long>(report.inverted_cells, 10));
   for (const auto& c : report.inverted_examples) {
-    CHECK(c[0] <= 2);              // a cell next to fibre (1,1) or (2,1)
+    CHECK(c[0] <= 2);  // a cell next to fibre (1,1) or (2,1)
     CHECK(c[1] <= 1);
     CHECK((c[2] >= 2 && c[2] <= 5));
   }
@@ -300,7 +301,8 @@ TEST_CASE("fibres ending far from their areas fail the attachment criterion", "[
   Polylines fibres = straight_lattice(3, 11, -kSize / 2, kSize);
   Attachments areas = automatic_attachments(box);
   const bool origin_at_minus_x = areas.origin.centroid().x() < 0;
-  if (!origin_at_minus_x) for (auto& line : fibres.lines) std::reverse(line.begin(), line.end());
+  if (!origin_at_minus_x)
+    for (auto& line : fibres.lines) std::reverse(line.begin(), line.end());
   const CheckReport report = check_fibres(fibres, box, areas);
   const double short_end = origin_at_minus_x ? report.attachment.origin_max : report.attachment.insertion_max;
   const double full_end = origin_at_minus_x ? report.attachment.insertion_max : report.attachment.origin_max;
@@ -313,7 +315,8 @@ TEST_CASE("fibres ending far from their areas fail the attachment criterion", "[
 
   // Reversed fibres (insertion to origin) fail too: each end is at the wrong area.
   Polylines reversed = straight_lattice(3, 11);
-  if (origin_at_minus_x) for (auto& line : reversed.lines) std::reverse(line.begin(), line.end());
+  if (origin_at_minus_x)
+    for (auto& line : reversed.lines) std::reverse(line.begin(), line.end());
   const CheckReport wrong_way = check_fibres(reversed, box, areas);
   CHECK(wrong_way.attachment.origin_max > 0.5);
   CHECK(has_failed(wrong_way, "attachment"));
@@ -392,7 +395,8 @@ TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
   CHECK(report.max_turning_angle_deg == Approx(90.0).epsilon(1e-12));
 }
 
-TEST_CASE("the smooth criterion: the largest turn, where it is, and the joints over 30 and 45 degrees", "[fibres][check]") {
+TEST_CASE("the smooth criterion: the largest turn, where it is, and the joints over 30 and 45 degrees",
+          "[fibres][check]") {
   const TriangleMesh box = long_box(3);
   Polylines fibres = straight_lattice(3, 11);
   const Attachments areas = areas_for(box, fibres);
@@ -556,7 +560,8 @@ TEST_CASE("bad options and inputs are refused", "[fibres][check]") {
   CHECK_THROWS_AS(check_fibres(fibres, box, empty), InputError);
 }
 
-TEST_CASE("fascicle check prints a table or JSON and writes the report and exits 19 with --strict", "[fibres][check][cli]") {
+TEST_CASE("fascicle check prints a table or JSON and writes the report and exits 19 with --strict",
+          "[fibres][check][cli]") {
   TempDir dir;
   const TriangleMesh box = long_box(3);
   Polylines good = straight_lattice(3, 9);
@@ -584,8 +589,9 @@ TEST_CASE("fascicle check prints a table or JSON and writes the report and exits
   CHECK(printed.at("thresholds").at("max_crossing_segments").get<long>() == 0);
   CHECK(printed.at("turning").at("max_deg").get<double>() == Approx(0.0).margin(1e-9));
   CHECK(printed.at("ends").at("origin").at("share").get<double>() > 0.9);
-  REQUIRE(run("check " + fibres + " " + mesh + " --json --strict --max-crossing-segments -1 --max-turning-angle 10 "
-              "--min-end-coverage 0.5 --segment-tolerance 0.01",
+  REQUIRE(run("check " + fibres + " " + mesh +
+                  " --json --strict --max-crossing-segments -1 --max-turning-angle 10 "
+                  "--min-end-coverage 0.5 --segment-tolerance 0.01",
               out) == 0);
   const nlohmann::json loose = nlohmann::json::parse(read_text(out)).at("thresholds");
   CHECK(loose.at("max_crossing_segments").get<long>() == -1);

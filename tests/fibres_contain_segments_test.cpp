@@ -55,7 +55,8 @@ CheckReport check(const springs::Lattice& lattice, const TriangleMesh& tube) {
   for (int j = 1; j + 1 < lattice.ny; ++j)
     for (int i = 1; i + 1 < lattice.nx; ++i) {
       std::vector<Vec3> line;
-      for (int k = 0; k < lattice.nz; ++k) line.push_back(lattice.system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]);
+      for (int k = 0; k < lattice.nz; ++k)
+        line.push_back(lattice.system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]);
       lines.push_back(line);
       rs.push_back(i - 1);
       ss.push_back(j - 1);

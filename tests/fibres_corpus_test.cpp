@@ -47,7 +47,8 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
       const auto& area = r["attachments"][end];
       const double share = r["attachments"]["placement_end_share"].get<double>();
       REQUIRE(area.contains("end_pieces"));
-      if (area["end_pieces"].get<int>() == 1) CHECK(area["end_fraction"].get<double>() == Approx(0.1 * share));
+      if (area["end_pieces"].get<int>() == 1)
+        CHECK(area["end_fraction"].get<double>() == Approx(0.1 * share));
       else {
         CHECK(area["end_fraction"].get<double>() > 0.1 * share + 0.02 - 1e-9);
         CHECK(area["end_fraction"].get<double>() <= 0.3 + 1e-9);
@@ -100,23 +101,29 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     }
     if (entry.path().filename() == "LHDL_R_M090_Psoas_smooth.415.report.json") CHECK(meridian);
     largest_layer_ratio = std::max(largest_layer_ratio, q["steps"]["layer_ratio"].get<double>());
-    if (attempts[0]["status"] == "ok") CHECK(ladder == 1);
+    if (attempts[0]["status"] == "ok")
+      CHECK(ladder == 1);
     else {
       REQUIRE(ladder >= 2);
       CHECK(attempts[1]["change"] == "alternative_placement");
-      const bool gated = attempts[0]["inverted_cells"].get<long>() > 50 ||
-                         attempts[0]["free_ring_tried"].get<bool>();
-      if (gated) CHECK(attempts[1]["status"] == "skipped");
-      else CHECK(attempts[1]["status"] != "skipped");
-      if (attempts[1]["status"] == "ok") CHECK(ladder == 2);
+      const bool gated = attempts[0]["inverted_cells"].get<long>() > 50 || attempts[0]["free_ring_tried"].get<bool>();
+      if (gated)
+        CHECK(attempts[1]["status"] == "skipped");
+      else
+        CHECK(attempts[1]["status"] != "skipped");
+      if (attempts[1]["status"] == "ok")
+        CHECK(ladder == 2);
       else {
         REQUIRE(ladder >= 3);
         CHECK(attempts[2]["change"] == "rim_left");
-        if (gated) CHECK(attempts[2]["status"] == "skipped");
-        else CHECK(attempts[2]["status"] != "skipped");
+        if (gated)
+          CHECK(attempts[2]["status"] == "skipped");
+        else
+          CHECK(attempts[2]["status"] != "skipped");
         // Then, never skipped, the fibre ends placed on 0.8 of the automatic areas
         // (DecomposeOptions::end_share_retry).
-        if (attempts[2]["status"] == "ok") CHECK(ladder == 3);
+        if (attempts[2]["status"] == "ok")
+          CHECK(ladder == 3);
         else {
           REQUIRE(ladder == 4);
           CHECK(attempts[3]["change"] == "end_share");

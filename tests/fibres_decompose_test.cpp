@@ -122,7 +122,8 @@ TEST_CASE("template surface points land on the muscle, faces in their areas", "[
   for (int k = 1; k < lattice.nz; ++k)
     CHECK(ring_z[static_cast<std::size_t>(k)] / ring_n[static_cast<std::size_t>(k)] <
           ring_z[static_cast<std::size_t>(k - 1)] / ring_n[static_cast<std::size_t>(k - 1)]);
-  CHECK(placement.report.located == static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
+  CHECK(placement.report.located ==
+        static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
 }
 
 TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placement]") {
@@ -141,7 +142,8 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
   const auto rings = [&](bool meridian) {
     PlacementOptions options;
     options.meridian_rings = meridian;
-    const Placement placement = place_template(setup.mesh, setup.map.positions, setup.locator, setup.areas, lattice, options);
+    const Placement placement =
+        place_template(setup.mesh, setup.map.positions, setup.locator, setup.areas, lattice, options);
     CHECK(placement.report.located ==
           static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
     const auto nz = static_cast<std::size_t>(lattice.nz);
@@ -311,7 +313,8 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   CHECK(strict.fibres.lines == left.fibres.lines);
 }
 
-TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct solve's result", "[fibres][decompose]") {
+TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct solve's result",
+          "[fibres][decompose]") {
   // 400 fibres x 20 points: 22 x 22 x 20 = 9680 lattice points, two multigrid levels.
   const TriangleMesh mesh = capsule();
   DecomposeOptions direct;
@@ -347,7 +350,8 @@ TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct
   CHECK_THROWS_AS(negative.validate(), OptionError);
 }
 
-TEST_CASE("fibre ends placed on a share of the automatic areas are checked against the whole areas", "[fibres][decompose]") {
+TEST_CASE("fibre ends placed on a share of the automatic areas are checked against the whole areas",
+          "[fibres][decompose]") {
   const TriangleMesh mesh = capsule();
   DecomposeOptions options;
   options.placement_end_share = 0.2;
@@ -510,7 +514,8 @@ TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[
   even.even_perimeter = true;
   PlacementOptions by_azimuth;
   by_azimuth.even_perimeter = false;
-  const double even_ratio = ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, even));
+  const double even_ratio =
+      ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, even));
   const double azimuth_ratio =
       ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, by_azimuth));
   CAPTURE(even_ratio, azimuth_ratio);
@@ -716,9 +721,7 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   try {
     decompose_repaired(mesh, same, {});
     FAIL("coinciding areas accepted");
-  } catch (const InputError& e) {
-    CHECK(e.code() == ErrorCode::landmarks);
-  }
+  } catch (const InputError& e) { CHECK(e.code() == ErrorCode::landmarks); }
 }
 
 TEST_CASE("fascicle decompose: one-line errors with their codes and no output", "[fibres][cli]") {
@@ -733,7 +736,8 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --corner-twist 200 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
-  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --contact-depth-min 0.5 2>/dev/null") == 18);
+  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --contact-depth-min 0.5 2>/dev/null") ==
+        18);
   CHECK_FALSE(std::filesystem::exists(out));
   for (const char* bad : {" --connect-margin -0.1", " --max-end-fraction 0.6", " --max-end-fraction 0.05"}) {
     CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + bad + " 2>/dev/null") == 18);
@@ -776,7 +780,8 @@ TEST_CASE("fascicle batch: one report per muscle, a summary, past failures, resu
   write_triangle_mesh((in / "capsule.off").string(), capsule());
   std::ofstream((in / "sub" / "broken.off").string()) << "not a mesh\n";
   const std::filesystem::path out = dir.path() / "out";
-  const std::string cmd = test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
+  const std::string cmd =
+      test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
   // The broken mesh fails, the batch goes on and says so with the broken mesh's code.
   CHECK(test::run_command(cmd + " 2>/dev/null") == 5);
   CHECK(std::filesystem::exists(out / "capsule.vtk"));
@@ -821,7 +826,8 @@ TEST_CASE("fascicle batch killed with SIGKILL leaves only complete outputs and r
   std::filesystem::create_directories(in);
   for (int i = 0; i < 8; ++i) write_triangle_mesh((in / ("m" + std::to_string(i) + ".off")).string(), capsule());
   const std::filesystem::path out = dir.path() / "out";
-  const std::string cmd = test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
+  const std::string cmd =
+      test::program() + " -q batch " + in.string() + " -o " + out.string() + " --jobs 2 --keep-failed";
   // Start the batch, kill it hard part-way (wherever the kill lands, the checks below hold).
   const std::string pid_file = (dir.path() / "pid").string();
   REQUIRE(test::run_command(cmd + " > /dev/null 2>&1 & echo $! > " + pid_file) == 0);

@@ -99,7 +99,7 @@ TEST_CASE("landmark twists: retried only with landmark areas, only while the che
   const Landmarks& landmarks = capsule.landmarks;
   DecomposeOptions& options = capsule.options;
   options.landmark_twists_deg = {0.0, 30.0};
-  options.retry_alternative = false;  // only the twists here (the alternative: fibres_decompose_test)
+  options.retry_alternative = false;      // only the twists here (the alternative: fibres_decompose_test)
   options.landmark_narrow_retry = false;  // its own test below
 
   const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
@@ -214,7 +214,8 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
       const std::string lhdl = test::data_dir() + "/muscles/lhdl/";
       const std::string base = test::program() + " -q check " + fibres + " " + lhdl + c.mesh + " --origin " + lhdl +
                                c.name + ".origin.xyz --insertion " + lhdl + c.name + ".insertion.xyz --report ";
-      const std::string strip_json = (dir.path() / "strip.json").string(), disk_json = (dir.path() / "disk.json").string();
+      const std::string strip_json = (dir.path() / "strip.json").string(),
+                        disk_json = (dir.path() / "disk.json").string();
       REQUIRE(test::run_command(base + strip_json + " > /dev/null 2>&1") == 0);
       REQUIRE(test::run_command(base + disk_json + " --landmark-strip false > /dev/null 2>&1") == 0);
       const nlohmann::json strip = nlohmann::json::parse(std::ifstream(strip_json));
@@ -282,8 +283,10 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
   for (const nlohmann::json& a : attempts) CHECK(a["change"] != "landmark_narrow");
 }
 
-TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus templates passes with the containment rounds that go on",
-          "[fibres][decompose][corpus][slow]") {
+TEST_CASE(
+    "landmark matrix: the LHDL psoas with the curved fanned and rectus templates passes with the containment rounds "
+    "that go on",
+    "[fibres][decompose][corpus][slow]") {
   // The default containment rounds (16, LatticeUntangleOptions::contact_rounds) that stop only
   // when the points outside stall too (fold_stall_needs_outside_stall) pass each pair on the narrow
   // stage's try run here (meridian rings, edge cells of 0.5; the curved template with the strips
@@ -296,8 +299,9 @@ TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus tem
     bool strip;
     double twist;
   };
-  for (const Pair& pair : {Pair{springs::TemplateKind::curved, true, 0.0}, Pair{springs::TemplateKind::fanned, false, 45.0},
-                           Pair{springs::TemplateKind::rectus, true, 67.5}}) {
+  for (const Pair& pair :
+       {Pair{springs::TemplateKind::curved, true, 0.0}, Pair{springs::TemplateKind::fanned, false, 45.0},
+        Pair{springs::TemplateKind::rectus, true, 67.5}}) {
     DecomposeOptions options;
     options.placement.meridian_rings = true;
     options.edge_cell = 0.5;
@@ -335,8 +339,9 @@ TEST_CASE("landmark matrix: the LHDL psoas with the curved fanned and rectus tem
   }
 }
 
-TEST_CASE("landmark narrow stage: the whole plan again with meridian rings and narrow edge cells only after every try failed",
-          "[fibres][decompose]") {
+TEST_CASE(
+    "landmark narrow stage: the whole plan again with meridian rings and narrow edge cells only after every try failed",
+    "[fibres][decompose]") {
   // The capsule and the check no decomposition can pass of the twists' test above.
   ImpossibleCapsule capsule = impossible_capsule();
   const TriangleMesh& mesh = capsule.mesh;

@@ -85,7 +85,8 @@ TEST_CASE("untangle: a point pushed through its neighbours is brought back, fixe
   Grid g = make_grid(6);
   const std::vector<Vec3> before = g.positions;
   // Fold: two interior points swapped along x, a third pushed past its neighbour in z.
-  std::swap(g.positions[static_cast<std::size_t>(g.index(2, 2, 2))], g.positions[static_cast<std::size_t>(g.index(3, 2, 2))]);
+  std::swap(g.positions[static_cast<std::size_t>(g.index(2, 2, 2))],
+            g.positions[static_cast<std::size_t>(g.index(3, 2, 2))]);
   g.positions[static_cast<std::size_t>(g.index(2, 3, 3))].z() += 0.35;
   REQUIRE(inverted(g.positions, g.tets) > 0);
   const UntangleReport r = untangle(g.positions, g.fixed, g.tets);
@@ -325,10 +326,11 @@ TEST_CASE("untangle: the energy's terms computed on several threads give the ser
   CHECK(parallel.iterations == serial.iterations);
   CHECK(parallel.evaluations == serial.evaluations);
   CHECK(parallel.min_det_after == serial.min_det_after);  // bitwise
-  CHECK(threads == one_thread);                            // bitwise
+  CHECK(threads == one_thread);                           // bitwise
 }
 
-TEST_CASE("untangle: the AVX2 and AVX-512 energy terms give the scalar code's result, bit for bit", "[fibres][untangle]") {
+TEST_CASE("untangle: the AVX2 and AVX-512 energy terms give the scalar code's result, bit for bit",
+          "[fibres][untangle]") {
   // The vector paths (fibres/untangle_terms.h) must make every rounding of the scalar one: the
   // same positions, iterations and min det J to the bit. Reference cells from a jittered grid
   // (entries of every size in the reference inverses, not the cube's zeros and ones), weights and
@@ -358,8 +360,8 @@ TEST_CASE("untangle: the AVX2 and AVX-512 energy terms give the scalar code's re
   g.tets.pop_back();
   g.positions = reference;
   for (int i = 0; i < 12; ++i) {
-    const std::size_t q = static_cast<std::size_t>(g.index(1 + static_cast<int>(rng() % 11), 1 + static_cast<int>(rng() % 11),
-                                                           1 + static_cast<int>(rng() % 11)));
+    const std::size_t q = static_cast<std::size_t>(
+        g.index(1 + static_cast<int>(rng() % 11), 1 + static_cast<int>(rng() % 11), 1 + static_cast<int>(rng() % 11)));
     g.positions[q] += 1.5 * h * Vec3(jitter(rng), jitter(rng), jitter(rng)) / 0.2;
   }
   REQUIRE(inverted(g.positions, g.tets) > 0);
@@ -396,8 +398,8 @@ TEST_CASE("untangle: the vector estimate of c^(-1/3) divides the bits by 3 exact
   std::mt19937_64 rng(11);
   std::vector<std::uint64_t> bits;
   for (int i = 0; i < 200000; ++i) bits.push_back(rng());
-  for (std::uint64_t hi : {0ull, 1ull, 2ull, 3ull, 4ull, 5ull, 0x3FEFFFFFull, 0x7FFFFFFEull, 0x7FFFFFFFull, 0xFFFFFFFDull,
-                           0xFFFFFFFEull, 0xFFFFFFFFull})
+  for (std::uint64_t hi : {0ull, 1ull, 2ull, 3ull, 4ull, 5ull, 0x3FEFFFFFull, 0x7FFFFFFEull, 0x7FFFFFFFull,
+                           0xFFFFFFFDull, 0xFFFFFFFEull, 0xFFFFFFFFull})
     for (std::uint64_t lo = 0; lo < 8; ++lo) {
       bits.push_back((hi << 32) | lo);
       bits.push_back((hi << 32) | (0xFFFFFFFFull - lo));
@@ -482,7 +484,8 @@ TEST_CASE("untangle: containment in the energy brings a lattice pushed partly ou
     Grid g = make_grid(6);
     for (int k = 0; k < g.n; ++k)
       for (int j = 0; j < g.n; ++j)
-        for (int i = 0; i < g.n; ++i) g.fixed[static_cast<std::size_t>(g.index(i, j, k))] = k == 0 || k == g.n - 1 ? 1 : 0;
+        for (int i = 0; i < g.n; ++i)
+          g.fixed[static_cast<std::size_t>(g.index(i, j, k))] = k == 0 || k == g.n - 1 ? 1 : 0;
     g.positions[static_cast<std::size_t>(g.index(2, 2, 2))].z() += 0.35;
     g.positions[static_cast<std::size_t>(g.index(3, 2, 3))].x() -= 0.3;
     return g;
@@ -667,14 +670,15 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
   // LHDL right gluteus medius: the untangling leaves points outside that must be fixed just
   // inside; pins fixed after the untangling can fold cells, so the cells around them are
   // untangled again with the pins fixed (LatticeUntangleOptions::pin_rounds).
-  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
+  const PolygonSoup soup =
+      read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
   DecomposeOptions options;
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
                                              // default twist of 45 degrees needs no pins here)
-  options.retry_alternative = false;  // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;      // (nor the end-share retry)
-  options.cast_rim = false;           // the face rims as when the case was found (cast, they
-                                      // leave nothing outside to pin here)
+  options.retry_alternative = false;         // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;             // (nor the end-share retry)
+  options.cast_rim = false;                  // the face rims as when the case was found (cast, they
+                                             // leave nothing outside to pin here)
   options.untangle.sliding_contact = false;  // the containment pins as when the case was found
                                              // (sliding, they bring every point in here)
   options.untangle.contact_rounds = 6;       // the rounds as when the case was found (16, the
@@ -696,10 +700,11 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
   // LHDL right gluteus maximus: with the face rims cast every containment round leaves fewer
   // points outside, so the stall rule (contact_stall_rounds 2; off by default) must not fire:
   // the same rounds, the same result.
-  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
+  const PolygonSoup soup =
+      read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   DecomposeOptions options;
-  options.retry_alternative = false;  // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;      // (nor the end-share retry)
+  options.retry_alternative = false;                    // this case is about the untangling of one placement
+  options.end_share_retry = 0.0;                        // (nor the end-share retry)
   REQUIRE(options.untangle.contact_stall_rounds == 0);  // the default: every containment round
   const Decomposition all_rounds = decompose(soup, {}, options);
   options.untangle.contact_stall_rounds = 2;
@@ -746,7 +751,8 @@ TEST_CASE("a decomposition is the same to the bit on one thread and on two", "[f
   // per-vertex loops, the general spring solves in two halves, the untangling (51 cells folded
   // before it; its first run above 2048 active tetrahedra, its containment rounds between 256
   // and 2048) and the check all run on threads, each summing in a fixed order.
-  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
+  const PolygonSoup soup =
+      read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   Decomposition one;
   {
     tbb::global_control only_one(tbb::global_control::max_allowed_parallelism, 1);
@@ -768,9 +774,10 @@ TEST_CASE("a decomposition is the same to the bit on one thread and on two", "[f
   CHECK(two.report.quality.pass);
 }
 
-TEST_CASE("untangle in the decomposition: the free-ring attempts run again with the containment energy where they "
-          "leave folds",
-          "[fibres][untangle][data][slow]") {
+TEST_CASE(
+    "untangle in the decomposition: the free-ring attempts run again with the containment energy where they "
+    "leave folds",
+    "[fibres][untangle][data][slow]") {
   FASCICLE_REQUIRE_DATA();
   // LHDL right psoas: with the surface ring free and without the containment energy, 33 cells stay
   // folded (the pins at the end fold them); the retry with the containment energy must leave fewer.
@@ -794,11 +801,10 @@ TEST_CASE("untangle in the decomposition: the free-ring attempts run again with 
   }
   REQUIRE(finished.count("free_ring"));
   REQUIRE(finished.count("free_ring_contained"));  // the retry ran
-  CHECK(finished["free_ring"] > 0);                 // because the first free-ring attempt left folds
-  const long contained = std::min(finished["free_ring_contained"],
-                                  finished.count("free_ring_contained_then_held_ends")
-                                      ? finished["free_ring_contained_then_held_ends"]
-                                      : std::numeric_limits<long>::max());
+  CHECK(finished["free_ring"] > 0);                // because the first free-ring attempt left folds
+  const long contained = std::min(finished["free_ring_contained"], finished.count("free_ring_contained_then_held_ends")
+                                                                       ? finished["free_ring_contained_then_held_ends"]
+                                                                       : std::numeric_limits<long>::max());
   CHECK(contained < finished["free_ring"]);
   CHECK(u["kept"].get<std::string>().rfind("free_ring_contained", 0) == 0);
   CHECK(u["inverted_left"].get<long>() == contained);

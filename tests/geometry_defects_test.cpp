@@ -46,17 +46,21 @@ EdgeCounts count_edges(const PolygonSoup& soup) {
     for (std::size_t k = 0; k < p.size(); ++k) {
       const int a = p[k], b = p[(k + 1) % p.size()];
       if (a == b) continue;
-      if (a < b) ++uses[{a, b}].first;
-      else ++uses[{b, a}].second;
+      if (a < b)
+        ++uses[{a, b}].first;
+      else
+        ++uses[{b, a}].second;
     }
   EdgeCounts c;
   for (const auto& [edge, u] : uses) {
     const int n = u.first + u.second;
-    if (n == 1) ++c.boundary;
+    if (n == 1)
+      ++c.boundary;
     else if (n == 2) {
       ++c.manifold;
       if (u.first != 1) ++c.inconsistent;
-    } else ++c.non_manifold;
+    } else
+      ++c.non_manifold;
   }
   return c;
 }
@@ -168,8 +172,7 @@ bool has_edge_through_triangle(const PolygonSoup& s) {
   for (const auto& [a, b] : edges)
     for (const auto& t : s.polygons) {
       if (std::find(t.begin(), t.end(), a) != t.end() || std::find(t.begin(), t.end(), b) != t.end()) continue;
-      if (segment_hits_triangle(s.points[a], s.points[b], s.points[t[0]], s.points[t[1]], s.points[t[2]]))
-        return true;
+      if (segment_hits_triangle(s.points[a], s.points[b], s.points[t[0]], s.points[t[1]], s.points[t[2]])) return true;
     }
   return false;
 }
@@ -562,9 +565,7 @@ TEST_CASE("sample options are validated field by field", "[geometry][sample]") {
   auto message = [](const SampleOptions& o) {
     try {
       o.validate();
-    } catch (const OptionError& e) {
-      return std::string(e.what());
-    }
+    } catch (const OptionError& e) { return std::string(e.what()); }
     return std::string();
   };
   CHECK(message(SampleOptions{}).empty());

@@ -33,9 +33,7 @@ void* operator new(std::size_t n) {
 void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
   try {
     return ::operator new(n);
-  } catch (...) {
-    return nullptr;
-  }
+  } catch (...) { return nullptr; }
 }
 // GCC flags free() on memory from a replaced operator new; here both sides are malloc/free.
 #pragma GCC diagnostic push
@@ -97,8 +95,9 @@ std::string binary_stl(std::uint32_t facets, const std::string& header = "binary
 }
 
 std::string binary_ply_tetra() {
-  std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-                  "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string s =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n";
   for (int v = 0; v < 4; ++v)
     for (int c = 0; c < 3; ++c) put<float>(s, static_cast<float>(v == c + 1));
   for (const auto& f : {std::array<int, 3>{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}}) {
@@ -156,7 +155,8 @@ TEST_CASE("error unknown_format: extension or content", "[geometry][io][errors]"
   require_soup_error(dir.file("x.ply"), ErrorCode::unknown_format, "line 1");
   write_bytes(dir.file("x.vtk"), "solid x\n");
   require_soup_error(dir.file("x.vtk"), ErrorCode::unknown_format, "line 1");
-  write_bytes(dir.file("x.stl"), "this is some text that is not an STL file at all, and it is long enough for a header\n");
+  write_bytes(dir.file("x.stl"),
+              "this is some text that is not an STL file at all, and it is long enough for a header\n");
   require_soup_error(dir.file("x.stl"), ErrorCode::unknown_format, "line 1");
   write_bytes(dir.file("x.obj"), "hello world\nfoo bar\n");
   require_soup_error(dir.file("x.obj"), ErrorCode::unknown_format, "");
@@ -164,7 +164,8 @@ TEST_CASE("error unknown_format: extension or content", "[geometry][io][errors]"
   require_soup_error(dir.file("grid.vtk"), ErrorCode::unknown_format, "line 4");
 }
 
-TEST_CASE("error truncated: binary STL, PLY, VTK cut short; ASCII with fewer elements than declared", "[geometry][io][errors]") {
+TEST_CASE("error truncated: binary STL, PLY, VTK cut short; ASCII with fewer elements than declared",
+          "[geometry][io][errors]") {
   TempDir dir;
   SECTION("binary STL, including one whose header starts with 'solid'") {
     for (const std::string header : {"binary", "solid but binary"}) {
@@ -190,9 +191,10 @@ TEST_CASE("error truncated: binary STL, PLY, VTK cut short; ASCII with fewer ele
   SECTION("ASCII OFF and PLY with fewer elements than declared") {
     write_bytes(dir.file("t.off"), "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n");
     require_soup_error(dir.file("t.off"), ErrorCode::truncated, "line 8");
-    write_bytes(dir.file("t.ply"), "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                   "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                                   "0 0 0\n1 0 0\n0 1 0\n3 0 1\n");
+    write_bytes(dir.file("t.ply"),
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                "0 0 0\n1 0 0\n0 1 0\n3 0 1\n");
     require_soup_error(dir.file("t.ply"), ErrorCode::truncated, "line 13");
   }
   SECTION("thesis file without its last sections") {
@@ -226,8 +228,9 @@ TEST_CASE("error index_out_of_range", "[geometry][io][errors]") {
   vtk.replace(last_vtk, 4, five);
   write_bytes(dir.file("i2.vtk"), vtk);
   require_soup_error(dir.file("i2.vtk"), ErrorCode::index_out_of_range, "byte " + std::to_string(last_vtk));
-  write_bytes(dir.file("i.vtk"), "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
-                                 "POLYGONS 1 4\n3 0 1 7\n");
+  write_bytes(dir.file("i.vtk"),
+              "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
+              "POLYGONS 1 4\n3 0 1 7\n");
   require_soup_error(dir.file("i.vtk"), ErrorCode::index_out_of_range, "line 8");
   write_bytes(dir.file("i.txt"), "3 3\n0 0 0 m\n1 0 0 m\n0 1 0 m\n1\n0 1 9\n0\n0\n0\n0\n");
   require_soup_error(dir.file("i.txt"), ErrorCode::index_out_of_range, "line 6");
@@ -267,7 +270,8 @@ TEST_CASE("error too_large: absurd declared counts allocate nothing", "[geometry
       {"h2.off", "OFF\n3 " + huge + " 0\n0 0 0\n1 0 0\n0 1 0\n"},
       {"h.ply", "ply\nformat binary_little_endian 1.0\nelement vertex " + huge +
                     "\nproperty float x\nproperty float y\nproperty float z\nend_header\n" + std::string(64, '\0')},
-      {"h.vtk", "# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS " + huge + " float\n" + std::string(64, '\0')},
+      {"h.vtk",
+       "# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS " + huge + " float\n" + std::string(64, '\0')},
       {"h.txt", huge + " 0\n0 0 0 i\n"},
   };
   // Binary VTK reports byte offsets from its BINARY line on: here the end of the POINTS line.
@@ -292,8 +296,9 @@ TEST_CASE("error too_large: absurd declared counts allocate nothing", "[geometry
     CHECK(g_largest.load() < (1u << 20));
   }
   // A list length inside a binary face claiming far more than the file holds.
-  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                    "element face 1\nproperty list int int vertex_indices\nend_header\n";
+  std::string ply =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list int int vertex_indices\nend_header\n";
   ply += std::string(36, '\0');
   put<std::int32_t>(ply, 2000000000);
   write_bytes(dir.file("list.ply"), ply);
@@ -325,7 +330,8 @@ TEST_CASE("error too_large: limits from ReadOptions", "[geometry][io][errors]") 
   CHECK(read_polygon_soup(dir.file("t.off"), four).polygons.size() == 4);
   CHECK(read_polygon_soup(dir.file("s.stl"), four).polygons.size() == 4);  // STL counts facets
   std::string ascii_stl = "solid x\n";
-  for (int f = 0; f < 4; ++f) ascii_stl += "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+  for (int f = 0; f < 4; ++f)
+    ascii_stl += "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
   write_bytes(dir.file("a.stl"), ascii_stl + "endsolid x\n");
   CHECK(read_polygon_soup(dir.file("a.stl"), four).polygons.size() == 4);
   four.max_elements = 3;
@@ -361,10 +367,12 @@ TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors
   require_soup_error(dir.file("m.obj"), ErrorCode::malformed, "line 4");
   write_bytes(dir.file("m.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n");
   require_soup_error(dir.file("m.ply"), ErrorCode::malformed, "line 4");
-  write_bytes(dir.file("m.vtk"), "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 1 float\n0 0 0\nPOLYHEDRA 1 2\n");
+  write_bytes(dir.file("m.vtk"),
+              "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 1 float\n0 0 0\nPOLYHEDRA 1 2\n");
   require_soup_error(dir.file("m.vtk"), ErrorCode::malformed, "line 7");
-  write_bytes(dir.file("c.vtk"), "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
-                                 "POLYGONS 1 5\n3 0 1 2\n");
+  write_bytes(dir.file("c.vtk"),
+              "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
+              "POLYGONS 1 5\n3 0 1 2\n");
   require_soup_error(dir.file("c.vtk"), ErrorCode::malformed, "line 8");  // 1 cell of 4 values, 5 declared
   write_bytes(dir.file("m.stl"), "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nbanana\n");
   require_soup_error(dir.file("m.stl"), ErrorCode::malformed, "line 5");
@@ -381,20 +389,25 @@ TEST_CASE("error malformed: syntax errors name the line", "[geometry][io][errors
 namespace {
 
 std::vector<std::pair<std::string, std::string>> seed_files() {
-  std::string stl_ascii = "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n";
-  std::string ply_ascii = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-                          "element face 2\nproperty list uchar int vertex_indices\nelement tristrips 1\n"
-                          "property list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"
-                          "6 0 1 2 -1 2 3\n";
-  std::string ply_be = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
-                       "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string stl_ascii =
+      "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid "
+      "s\n";
+  std::string ply_ascii =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 2\nproperty list uchar int vertex_indices\nelement tristrips 1\n"
+      "property list int int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"
+      "6 0 1 2 -1 2 3\n";
+  std::string ply_be =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+      "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
   for (int v = 0; v < 3; ++v)
     for (int c = 0; c < 3; ++c) put<double>(ply_be, v == c ? 1.0 : 0.0, true);
   put<std::uint8_t>(ply_be, 3);
   for (int i : {0, 1, 2}) put<std::int32_t>(ply_be, i, true);
-  std::string vtk_ascii = "# vtk DataFile Version 3.0\nt\n\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 1 1 0\n"
-                          "LINES 1 3\n2 0 3\nPOLYGONS 1 4\n3 0 1 2\nTRIANGLE_STRIPS 1 4\n3 1 3 2\nCELL_DATA 3\n"
-                          "SCALARS a float 1\nLOOKUP_TABLE default\n1 2 3\n";
+  std::string vtk_ascii =
+      "# vtk DataFile Version 3.0\nt\n\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 1 1 0\n"
+      "LINES 1 3\n2 0 3\nPOLYGONS 1 4\n3 0 1 2\nTRIANGLE_STRIPS 1 4\n3 1 3 2\nCELL_DATA 3\n"
+      "SCALARS a float 1\nLOOKUP_TABLE default\n1 2 3\n";
   return {{"a.off", tetra_off},
           {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1/1 2/2 3/3\nf -1 -2 \\\n -3\nl 1 2\n"},
           {"a.stl", stl_ascii},
@@ -414,9 +427,9 @@ std::string mutate(const std::string& original, std::mt19937& rng) {
   const int edits = 1 + static_cast<int>(pick(3));
   for (int e = 0; e < edits && !s.empty(); ++e) {
     switch (pick(5)) {
-      case 0: s.resize(pick(s.size())); break;                                         // truncate
-      case 1: s[pick(s.size())] = static_cast<char>(pick(256)); break;                  // random byte
-      case 2: s[pick(s.size())] = alphabet[pick(sizeof(alphabet) - 1)]; break;          // plausible char
+      case 0: s.resize(pick(s.size())); break;                                           // truncate
+      case 1: s[pick(s.size())] = static_cast<char>(pick(256)); break;                   // random byte
+      case 2: s[pick(s.size())] = alphabet[pick(sizeof(alphabet) - 1)]; break;           // plausible char
       case 3: s.insert(pick(s.size()), 1, alphabet[pick(sizeof(alphabet) - 1)]); break;  // insertion
       default: {                                                                         // a huge count
         const std::size_t at = pick(s.size());

@@ -91,7 +91,8 @@ TEST_CASE("binary STL round-trips within float precision", "[geometry][io]") {
     for (int k = 0; k < 3; ++k) {
       const Vec3& expected = mesh.positions[static_cast<std::size_t>(mesh.triangles[f][static_cast<std::size_t>(k)])];
       for (int c = 0; c < 3; ++c)
-        CHECK(soup.points[3 * f + static_cast<std::size_t>(k)][c] == static_cast<double>(static_cast<float>(expected[c])));
+        CHECK(soup.points[3 * f + static_cast<std::size_t>(k)][c] ==
+              static_cast<double>(static_cast<float>(expected[c])));
     }
   }
   // The stored normal of the first facet is the unit normal of its triangle.
@@ -126,9 +127,7 @@ TEST_CASE("writers report an unwritable target as IoError and keep an existing f
   try {
     write_triangle_mesh(dir.file("missing-folder/mesh.off"), mesh);
     FAIL("no exception");
-  } catch (const IoError& e) {
-    CHECK(e.code() == ErrorCode::output_failed);
-  }
+  } catch (const IoError& e) { CHECK(e.code() == ErrorCode::output_failed); }
   const std::string path = dir.file("mesh.obj");
   write_bytes(path, "old content");
   TriangleMesh broken = mesh;
@@ -257,14 +256,16 @@ TEST_CASE("OFF variants: glued header, comments, COFF/NOFF extras, face colours,
     CHECK(s.polygons == square);
   }
   SECTION("comments, blank lines, counts on their own line, CRLF") {
-    write_bytes(dir.file("a.off"), "OFF\r\n# c\r\n\r\n4 1 4\r\n0 0 0 # a vertex\r\n1 0 0\r\n\r\n1 1 0\r\n0 1 0\r\n# f\r\n4 0 1 2 3\r\n");
+    write_bytes(dir.file("a.off"),
+                "OFF\r\n# c\r\n\r\n4 1 4\r\n0 0 0 # a vertex\r\n1 0 0\r\n\r\n1 1 0\r\n0 1 0\r\n# f\r\n4 0 1 2 3\r\n");
     const PolygonSoup s = read_polygon_soup(dir.file("a.off"));
     CHECK(s.points[1] == Vec3(1, 0, 0));
     CHECK(s.polygons == square);
   }
   SECTION("COFF / NOFF extra vertex values and face colours are ignored") {
-    write_bytes(dir.file("c.off"), "NCOFF\n4 2 0\n0 0 0 0 0 1 255 0 0 255\n1 0 0 0 0 1 1 1 1 1\n1 1 0 0 0 1 1 1 1 1\n"
-                                   "0 1 0 0 0 1 1 1 1 1\n3 0 1 2 1.0 0.0 0.0 0.75\n3 0 2 3\n");
+    write_bytes(dir.file("c.off"),
+                "NCOFF\n4 2 0\n0 0 0 0 0 1 255 0 0 255\n1 0 0 0 0 1 1 1 1 1\n1 1 0 0 0 1 1 1 1 1\n"
+                "0 1 0 0 0 1 1 1 1 1\n3 0 1 2 1.0 0.0 0.0 0.75\n3 0 2 3\n");
     const PolygonSoup s = read_polygon_soup(dir.file("c.off"));
     CHECK(s.points == std::vector<Vec3>{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)});
     CHECK(s.polygons == Polys{{0, 1, 2}, {0, 2, 3}});
@@ -289,8 +290,9 @@ TEST_CASE("a UTF-8 byte order mark does not hide the first statement", "[geometr
   CHECK(read_polygon_soup(dir.file("b.obj")).points.size() == 3);
   write_bytes(dir.file("b.off"), bom + "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   CHECK(read_polygon_soup(dir.file("b.off")).polygons == Polys{{0, 1, 2}});
-  write_bytes(dir.file("b.stl"), bom + "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
-                                       "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
+  write_bytes(dir.file("b.stl"), bom +
+                                     "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+                                     "vertex 0 1 0\nendloop\nendfacet\nendsolid x\n");
   CHECK(read_polygon_soup(dir.file("b.stl")).polygons == Polys{{0, 1, 2}});
   write_bytes(dir.file("b.xyz"), bom + "1 2 3\n");
   CHECK(read_points(dir.file("b.xyz")) == std::vector<Vec3>{Vec3(1, 2, 3)});
@@ -330,7 +332,8 @@ TEST_CASE("ASCII STL, several solids, loose case and layout", "[geometry][io][st
   write_bytes(dir.file("a.stl"),
               "solid one\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n"
               "  endloop\n endfacet\nendsolid one\n"
-              "SOLID two\nFACET NORMAL nan 0 0 OUTER LOOP VERTEX 0 0 1 VERTEX 1 0 1\r\nVERTEX 0 1 1.5e0 ENDLOOP ENDFACET\nENDSOLID\n");
+              "SOLID two\nFACET NORMAL nan 0 0 OUTER LOOP VERTEX 0 0 1 VERTEX 1 0 1\r\nVERTEX 0 1 1.5e0 ENDLOOP "
+              "ENDFACET\nENDSOLID\n");
   const PolygonSoup s = read_polygon_soup(dir.file("a.stl"));
   REQUIRE(s.points.size() == 6);
   CHECK(s.points[5] == Vec3(0, 1, 1.5));
@@ -370,7 +373,8 @@ std::string binary_ply(bool big) {
   std::string h = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
                   " 1.0\ncomment test\nobj_info extra\nelement vertex 4\nproperty short x\nproperty double y\n"
                   "property float z\nproperty uchar red\nproperty list uchar float extra\n"
-                  "element face 2\nproperty list uchar short texcoord_ids\nproperty list uint int vertex_index\nproperty int flags\n"
+                  "element face 2\nproperty list uchar short texcoord_ids\nproperty list uint int "
+                  "vertex_index\nproperty int flags\n"
                   "element material 1\nproperty list int uchar name\nend_header\n";
   const double p[4][3] = {{0, 0.5, 0.25}, {1, 0, 0}, {1, 1, 0}, {-3, 1, 0}};
   for (const auto& v : p) {
@@ -410,11 +414,12 @@ TEST_CASE("PLY binary little and big endian with mixed types and extra propertie
 
 TEST_CASE("PLY ASCII with extra elements and properties", "[geometry][io][ply]") {
   TempDir dir;
-  write_bytes(dir.file("a.ply"),
-              "ply\r\nformat ascii 1.0\r\ncomment hi\r\nelement vertex 3\r\nproperty float x\r\nproperty float y\r\n"
-              "property float z\r\nproperty float confidence\r\nelement face 2\r\nproperty list uchar int vertex_indices\r\n"
-              "property uchar red\r\nelement edge 1\r\nproperty int a\r\nproperty int b\r\nend_header\r\n"
-              "0 0 0 0.5\r\n1 0 0 0.5\r\n0 1 -2.5e-1 1\r\n3 0 1 2 255\r\n2 1 2 0\r\n0 1\r\n");
+  write_bytes(
+      dir.file("a.ply"),
+      "ply\r\nformat ascii 1.0\r\ncomment hi\r\nelement vertex 3\r\nproperty float x\r\nproperty float y\r\n"
+      "property float z\r\nproperty float confidence\r\nelement face 2\r\nproperty list uchar int vertex_indices\r\n"
+      "property uchar red\r\nelement edge 1\r\nproperty int a\r\nproperty int b\r\nend_header\r\n"
+      "0 0 0 0.5\r\n1 0 0 0.5\r\n0 1 -2.5e-1 1\r\n3 0 1 2 255\r\n2 1 2 0\r\n0 1\r\n");
   const PolygonSoup s = read_polygon_soup(dir.file("a.ply"));
   CHECK(s.points[2] == Vec3(0, 1, -0.25));
   CHECK(s.polygons == Polys{{0, 1, 2}, {1, 2}});
@@ -431,8 +436,9 @@ TEST_CASE("PLY tristrips: restarts at -1, alternating winding, degenerate triang
   const Polys expected = {{0, 1, 2}, {2, 1, 3}, {2, 3, 4}, {5, 4, 3}, {3, 4, 3}, {3, 3, 2}};
   CHECK(read_polygon_soup(dir.file("s.ply")).polygons == expected);
 
-  std::string bin = "ply\nformat binary_big_endian 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
-                    "element tristrips 1\nproperty list int int vertex_indices\nend_header\n";
+  std::string bin =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+      "element tristrips 1\nproperty list int int vertex_indices\nend_header\n";
   for (int i = 0; i < 6; ++i) {
     put<float>(bin, static_cast<float>(i % 2), true);
     put<float>(bin, static_cast<float>(i / 2), true);
@@ -450,7 +456,8 @@ TEST_CASE("PLY tristrips: restarts at -1, alternating winding, degenerate triang
 // ---------------------------------------------------------------------------------------------
 // VTK
 
-TEST_CASE("VTK ASCII: blank line after the title, all cell kinds, attributes after the geometry", "[geometry][io][vtk]") {
+TEST_CASE("VTK ASCII: blank line after the title, all cell kinds, attributes after the geometry",
+          "[geometry][io][vtk]") {
   TempDir dir;
   write_bytes(dir.file("a.vtk"),
               "# vtk DataFile Version 3.0\nmy title\n\nASCII\nDATASET POLYDATA\n"
@@ -625,7 +632,8 @@ TEST_CASE("corpus: LHDL muscle counts, PLY strips, parser edge cases", "[geometr
   // wallhole.obj: the second face continues over a `\` line: 7 + 4 corners.
   CHECK(read_polygon_soup(root + "/broken/trimesh-models/wallhole.obj").polygons[1].size() == 11);
   // negative_indices.obj: "f -8/-13/-6 -4/-12/-6 -2/-12/-6 -6/-11/-6" with 8 vertices.
-  CHECK(read_polygon_soup(root + "/broken/trimesh-models/negative_indices.obj").polygons[0] == std::vector<int>{0, 4, 6, 2});
+  CHECK(read_polygon_soup(root + "/broken/trimesh-models/negative_indices.obj").polygons[0] ==
+        std::vector<int>{0, 4, 6, 2});
 }
 
 TEST_CASE("corpus: landmark files", "[geometry][io][corpus]") {

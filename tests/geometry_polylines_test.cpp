@@ -12,8 +12,8 @@
 #include <sstream>
 
 using namespace fascicle;
-using test::read_text;
 using fascicle::test::TempDir;
+using test::read_text;
 
 namespace {
 
@@ -115,7 +115,8 @@ TEST_CASE("polylines round-trip exactly through vtk vtp obj and csv", "[geometry
   }
 }
 
-TEST_CASE("CSV has one row per point with r and s from the lattice arrays or the fibre index", "[geometry][io][polylines]") {
+TEST_CASE("CSV has one row per point with r and s from the lattice arrays or the fibre index",
+          "[geometry][io][polylines]") {
   TempDir dir;
   Polylines lines;
   lines.lines = {{Vec3(0, 0, 0), Vec3(1, 0, 0)}, {Vec3(0, 1, 0), Vec3(0.5, 1, 0), Vec3(1, 1, 0)}};
@@ -173,16 +174,20 @@ TEST_CASE("malformed CSV polylines give one-line errors with the line", "[geomet
   check_error("a.csv", h + "-1,0,0,0,1,2,3\n", ErrorCode::malformed, "line 2: fibre '-1'");
   check_error("a.csv", h + "0,0,0,1.5,1,2,3\n", ErrorCode::malformed, "line 2: point '1.5'");
   check_error("a.csv", h + "0,0,0,0,1,2,3\n0,1,0,1,1,2,3\n", ErrorCode::malformed, "line 3: fibre 0 has r, s");
-  check_error("a.csv", h + "0,0,0,0,1,2,3\n\n0,0,0,0,1,2,3\n", ErrorCode::malformed, "line 2: fibre 0 has point 0 twice");
+  check_error("a.csv", h + "0,0,0,0,1,2,3\n\n0,0,0,0,1,2,3\n", ErrorCode::malformed,
+              "line 2: fibre 0 has point 0 twice");
   check_error("a.csv", "", ErrorCode::file_empty, "line 1");
 }
 
 TEST_CASE("malformed VTP polylines give one-line errors with the line", "[geometry][io][polylines]") {
   const std::string head = "<VTKFile type=\"PolyData\">\n<PolyData>\n";
   const std::string piece = "<Piece NumberOfPoints=\"2\" NumberOfLines=\"1\">\n";
-  const std::string points = "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1 1</DataArray></Points>\n";
-  const std::string lines = "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1</DataArray>\n"
-                            "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>\n";
+  const std::string points =
+      "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1 "
+      "1</DataArray></Points>\n";
+  const std::string lines =
+      "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1</DataArray>\n"
+      "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>\n";
   const std::string tail = "</Piece>\n</PolyData>\n</VTKFile>\n";
   {
     TempDir dir;  // the pieces make a valid file
@@ -193,24 +198,42 @@ TEST_CASE("malformed VTP polylines give one-line errors with the line", "[geomet
   check_error("a.vtp", "<VTKFile type=\"UnstructuredGrid\">\n</VTKFile>\n", ErrorCode::unknown_format,
               "line 1: VTK XML file of type 'UnstructuredGrid'");
   check_error("a.vtp", head + piece + points, ErrorCode::truncated, "line 5: file ends inside <Piece>");
-  check_error("a.vtp", head + piece + "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0\n1 1",
+  check_error("a.vtp",
+              head + piece + "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0\n1 1",
               ErrorCode::truncated, "line 5: file ends inside a DataArray");
-  check_error("a.vtp", head + piece + "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0\n1 x 1</DataArray></Points>\n" + lines + tail,
+  check_error("a.vtp",
+              head + piece +
+                  "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0\n1 x "
+                  "1</DataArray></Points>\n" +
+                  lines + tail,
               ErrorCode::bad_number, "line 5: value 'x'");
-  check_error("a.vtp", head + piece + "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1</DataArray></Points>\n" + lines + tail,
+  check_error("a.vtp",
+              head + piece +
+                  "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 "
+                  "1</DataArray></Points>\n" +
+                  lines + tail,
               ErrorCode::malformed, "line 4: Points DataArray holds 5 values");
-  check_error("a.vtp", head + piece + "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"binary\">AAAA</DataArray></Points>\n" + lines + tail,
-              ErrorCode::unknown_format, "line 4: DataArray '' has format 'binary'");
-  check_error("a.vtp", head + piece + points +
-                           "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0\n5</DataArray>\n"
-                           "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>\n" + tail,
+  check_error(
+      "a.vtp",
+      head + piece +
+          "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"binary\">AAAA</DataArray></Points>\n" +
+          lines + tail,
+      ErrorCode::unknown_format, "line 4: DataArray '' has format 'binary'");
+  check_error("a.vtp",
+              head + piece + points +
+                  "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0\n5</DataArray>\n"
+                  "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>\n" +
+                  tail,
               ErrorCode::index_out_of_range, "line 5: connectivity entry 1: point index 5");
-  check_error("a.vtp", head + piece + points +
-                           "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1</DataArray>\n"
-                           "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">3</DataArray></Lines>\n" + tail,
+  check_error("a.vtp",
+              head + piece + points +
+                  "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1</DataArray>\n"
+                  "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">3</DataArray></Lines>\n" +
+                  tail,
               ErrorCode::malformed, "line 6: offset 0 (3)");
-  check_error("a.vtp", head + piece + points +
-                           "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1.5</DataArray>\n" + tail,
+  check_error("a.vtp",
+              head + piece + points +
+                  "<Lines><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1.5</DataArray>\n" + tail,
               ErrorCode::malformed, "line 5: value '1.5'");
   check_error("a.vtp", head + "<Piece NumberOfPoints=\"99999999999\" NumberOfLines=\"1\">\n" + points + lines + tail,
               ErrorCode::too_large, "line 3: declares 99999999999 points");
@@ -218,11 +241,13 @@ TEST_CASE("malformed VTP polylines give one-line errors with the line", "[geomet
               "line 3: NumberOfPoints 'two'");
   check_error("a.vtp", head + piece + points + lines + "</Points>\n" + tail, ErrorCode::malformed,
               "line 7: end tag </Points> does not close <Piece>");
-  check_error("a.vtp", head + piece + points + lines +
-                           "<CellData><DataArray type=\"Float64\" Name=\"c\" format=\"ascii\">1 2</DataArray></CellData>\n" + tail,
+  check_error("a.vtp",
+              head + piece + points + lines +
+                  "<CellData><DataArray type=\"Float64\" Name=\"c\" format=\"ascii\">1 2</DataArray></CellData>\n" +
+                  tail,
               ErrorCode::malformed, "line 7: CellData array 'c' holds 2 values for 1 cells");
-  check_error("a.vtp", head + "<Piece NumberOfPoints=\"2\" NumberOfLines=\"0\">\n" + points + tail, ErrorCode::file_empty,
-              "holds no polylines");
+  check_error("a.vtp", head + "<Piece NumberOfPoints=\"2\" NumberOfLines=\"0\">\n" + points + tail,
+              ErrorCode::file_empty, "holds no polylines");
   check_error("a.vtp", head + piece + points + tail, ErrorCode::malformed, "<Lines> needs");
   check_error("a.vtp", "<VTKFile type=\"PolyData\" x=1>", ErrorCode::malformed, "line 1: value of attribute 'x'");
   check_error("a.vtp", "<!-- open comment", ErrorCode::truncated, "line 1: file ends inside a comment");
@@ -238,13 +263,9 @@ TEST_CASE("polyline formats are chosen by extension", "[geometry][io][polylines]
   try {
     read_polylines(dir.file("f.xyz"));
     FAIL("no exception");
-  } catch (const InputError& e) {
-    CHECK(e.code() == ErrorCode::unknown_format);
-  }
+  } catch (const InputError& e) { CHECK(e.code() == ErrorCode::unknown_format); }
   try {
     read_polylines(dir.file("missing.vtp"));
     FAIL("no exception");
-  } catch (const InputError& e) {
-    CHECK(e.code() == ErrorCode::file_missing);
-  }
+  } catch (const InputError& e) { CHECK(e.code() == ErrorCode::file_missing); }
 }

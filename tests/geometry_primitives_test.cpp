@@ -34,17 +34,21 @@ EdgeCounts count_edges(const std::vector<std::vector<int>>& polygons) {
   for (const auto& p : polygons)
     for (std::size_t k = 0; k < p.size(); ++k) {
       const int a = p[k], b = p[(k + 1) % p.size()];
-      if (a < b) ++uses[{a, b}].first;
-      else ++uses[{b, a}].second;
+      if (a < b)
+        ++uses[{a, b}].first;
+      else
+        ++uses[{b, a}].second;
     }
   EdgeCounts c;
   for (const auto& [edge, u] : uses) {
     const int n = u.first + u.second;
-    if (n == 1) ++c.boundary;
+    if (n == 1)
+      ++c.boundary;
     else if (n == 2) {
       ++c.manifold;
       if (u.first != 1) ++c.inconsistent;
-    } else ++c.non_manifold;
+    } else
+      ++c.non_manifold;
   }
   return c;
 }

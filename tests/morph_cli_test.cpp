@@ -84,9 +84,9 @@ TEST_CASE("fascicle sphere --sphere-method relax succeeds or says how it failed"
                           " --sphere-method relax --report " + dir.file("a.json")) == 0);
   CHECK(nlohmann::json::parse(slurp(dir.file("a.json"))).at("sphere").at("method") == "relax");
   write_triangle_mesh(dir.file("thin.off"), test::capsule(1.0, 100.0, 12));
-  const int rc = test::run_command(test::program() + " -q sphere " + dir.file("thin.off") + " -o " +
-                                   dir.file("b.off") + " --sphere-method relax --relax-iterations 2000 --report " +
-                                   dir.file("b.json") + " 2>/dev/null");
+  const int rc = test::run_command(test::program() + " -q sphere " + dir.file("thin.off") + " -o " + dir.file("b.off") +
+                                   " --sphere-method relax --relax-iterations 2000 --report " + dir.file("b.json") +
+                                   " 2>/dev/null");
   const nlohmann::json b = nlohmann::json::parse(slurp(dir.file("b.json")));
   if (rc == 0) {
     CHECK(b.at("sphere").at("quality").at("bijective") == true);

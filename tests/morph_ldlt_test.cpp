@@ -65,7 +65,8 @@ void require_same(const EigenLDLT& reference, const ParallelLDLT& ours, const Ei
   const Matrix l0 = reference.matrixL(), l1 = ours.matrixL();
   REQUIRE(l0.nonZeros() == l1.nonZeros());
   CHECK(same_bits(l0.valuePtr(), l1.valuePtr(), l0.nonZeros()));
-  CHECK(std::memcmp(l0.innerIndexPtr(), l1.innerIndexPtr(), sizeof(int) * static_cast<std::size_t>(l0.nonZeros())) == 0);
+  CHECK(std::memcmp(l0.innerIndexPtr(), l1.innerIndexPtr(), sizeof(int) * static_cast<std::size_t>(l0.nonZeros())) ==
+        0);
   const Eigen::MatrixXd x0 = reference.solve(rhs), x1 = ours.solve(rhs), x2 = ours.solve_columns(rhs);
   CHECK(same_bits(x0.data(), x1.data(), x0.size()));
   CHECK(same_bits(x0.data(), x2.data(), x0.size()));

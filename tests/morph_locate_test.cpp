@@ -142,7 +142,8 @@ TEST_CASE("first_hit finds the hit of a test of every triangle, to the bit", "[m
     const Vec3 lo = p.cwiseMin(q), hi = p.cwiseMax(q);
     for (const Triangle& t : mesh.triangles) {
       const Vec3 &a = mesh.positions[t[0]], &b = mesh.positions[t[1]], &c = mesh.positions[t[2]];
-      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0) continue;
+      if ((a.cwiseMax(b).cwiseMax(c) - lo).minCoeff() < 0.0 || (hi - a.cwiseMin(b).cwiseMin(c)).minCoeff() < 0.0)
+        continue;
       double t_hit = 0.0;
       if (ray_triangle_hit(p, d, a, b, c, t_hit) && t_hit > 0.0 && t_hit < best) best = t_hit, found = true;
     }
@@ -202,11 +203,11 @@ TEST_CASE("side() answers as the exact test, the grid answering points away from
       outside += exact == Side::outside;
       boundary += exact == Side::boundary;
     }
-    CHECK(grid.regions() >= 2);   // at least the outside and the inside
+    CHECK(grid.regions() >= 2);  // at least the outside and the inside
     CHECK(inside > 500);
     CHECK(outside > 500);
     CHECK(boundary >= static_cast<long>(mesh.positions.size()));
-    CHECK(by_grid > 2000);        // most random points are answered by their cell
+    CHECK(by_grid > 2000);  // most random points are answered by their cell
   }
 }
 

@@ -84,10 +84,12 @@ TEST_CASE("tutte sphere map does not depend on scale or CT offsets", "[morph]") 
   require_bijective(far, c);
   // Same shape, same map (up to round-off in the offset copy's coordinates).
   double largest = 0.0;
-  for (std::size_t i = 0; i < base.positions.size(); ++i) largest = std::max(largest, (a.positions[i] - b.positions[i]).norm());
+  for (std::size_t i = 0; i < base.positions.size(); ++i)
+    largest = std::max(largest, (a.positions[i] - b.positions[i]).norm());
   CHECK(largest < 1e-5);
   double far_largest = 0.0;
-  for (std::size_t i = 0; i < base.positions.size(); ++i) far_largest = std::max(far_largest, (a.positions[i] - c.positions[i]).norm());
+  for (std::size_t i = 0; i < base.positions.size(); ++i)
+    far_largest = std::max(far_largest, (a.positions[i] - c.positions[i]).norm());
   CHECK(far_largest < 1e-3);
 }
 
@@ -139,7 +141,7 @@ TEST_CASE("thesis relaxation maps a round mesh and reports how it fails on a lon
 TEST_CASE("both starts give a bijection when forced", "[morph]") {
   SphereMapOptions stereo, tube;
   stereo.start = SphereStart::stereographic;
-  tube.tube_elongation = 0.0;    // always the tube start first
+  tube.tube_elongation = 0.0;  // always the tube start first
   const TriangleMesh round = test::icosphere(3);
   const TriangleMesh bent = test::bent_capsule(1.0, 8.0, 16, 90.0);
   const SphereMap a = map_to_sphere(round, tube), b = map_to_sphere(bent, stereo), c = map_to_sphere(bent, tube);
@@ -168,7 +170,7 @@ TEST_CASE("the sphere map is the same to the bit on one thread and on four", "[m
     SphereMap one, many;
     tbb::task_arena(1).execute([&] { one = map_to_sphere(*mesh); });
     tbb::task_arena(4).execute([&] { many = map_to_sphere(*mesh); });
-    REQUIRE(one.report.iterations > 0);  // the balancing ran
+    REQUIRE(one.report.iterations > 0);                          // the balancing ran
     if (mesh == &bent) REQUIRE(one.report.reweight_rounds > 0);  // a tube start, reweighted
     REQUIRE(one.positions.size() == many.positions.size());
     long differ = 0;

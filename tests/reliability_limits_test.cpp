@@ -68,9 +68,7 @@ Error read_error(const std::string& path) {
       (void)read_points(path);
     else
       (void)read_polygon_soup(path);
-  } catch (const Error& e) {
-    return e;
-  }
+  } catch (const Error& e) { return e; }
   FAIL("no error reading " << path);
   return Error(ErrorCode::internal, "unreachable");
 }
@@ -103,17 +101,21 @@ TEST_CASE("limits: a header declaring huge counts is refused before anything is 
       {"face-size.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2000000000 0 1 2\n"},
       {"count-overflow.off", "OFF\n99999999999999999999999 1 0\n"},
       {"facets.stl", std::string(80, ' ') + u32le(0xFFFFFFFFu) + std::string(50, '\0')},
-      {"vertex.ply", "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n"
-                     "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n"},
-      {"face.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                   "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\nend_header\n" +
-                       std::string(36, '\0')},
-      {"list.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                   "property float z\nelement face 1\nproperty list int int vertex_indices\nend_header\n" +
-                       std::string(36, '\0') + u32le(0x7FFFFFFFu) + std::string(12, '\0')},
+      {"vertex.ply",
+       "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n"},
+      {"face.ply",
+       "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\nend_header\n" +
+           std::string(36, '\0')},
+      {"list.ply",
+       "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 1\nproperty list int int vertex_indices\nend_header\n" +
+           std::string(36, '\0') + u32le(0x7FFFFFFFu) + std::string(12, '\0')},
       {"points.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3000000000 float\n0 0 0\n"},
-      {"polygons.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
-                       "POLYGONS 2000000000 8000000000\n3 0 1 2\n"},
+      {"polygons.vtk",
+       "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
+       "POLYGONS 2000000000 8000000000\n3 0 1 2\n"},
       {"cell.vtk", "# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n" + std::string(36, '\0') +
                        "\nPOLYGONS 1 4\n" + u32be(0x7FFFFFFFu) + std::string(12, '\0') + "\n"},
       {"points.txt", "3000000000 0\n0 0 0 i\n"},
@@ -136,9 +138,7 @@ TEST_CASE("limits: a header declaring huge counts is refused before anything is 
 TEST_CASE("limits: a file above max_file_bytes is refused without being read", "[reliability]") {
   test::TempDir dir;
   const std::string path = dir.file("huge.stl");
-  {
-    std::ofstream(path).put('x');
-  }
+  { std::ofstream(path).put('x'); }
   // A sparse file: 5 GiB long, no disk used.
   std::filesystem::resize_file(path, 5ULL << 30);
   const long long before = peak_rss_bytes();
@@ -177,9 +177,7 @@ TEST_CASE("limits: 200 MB of random bytes in every format gives a clear error", 
   try {
     (void)read_polygon_soup(path, small);
     FAIL("read a file above max_file_bytes");
-  } catch (const InputError& e) {
-    CHECK(e.code() == ErrorCode::too_large);
-  }
+  } catch (const InputError& e) { CHECK(e.code() == ErrorCode::too_large); }
 }
 
 TEST_CASE("limits: a 2 GiB file of garbage is refused without reading it all", "[reliability][resource]") {
@@ -224,7 +222,8 @@ TEST_CASE("limits: a muscle among 20 000 tiny tetrahedra is kept as repaired alo
     const Vec3 o(12.0 + spacing * (t % 28), -10.0 + spacing * ((t / 28) % 28), -10.0 + spacing * (t / 784));
     const int k = static_cast<int>(mesh.positions.size());
     mesh.positions.insert(mesh.positions.end(), {o, o + Vec3(edge, 0, 0), o + Vec3(0, edge, 0), o + Vec3(0, 0, edge)});
-    mesh.triangles.insert(mesh.triangles.end(), {{k, k + 2, k + 1}, {k, k + 1, k + 3}, {k, k + 3, k + 2}, {k + 1, k + 2, k + 3}});
+    mesh.triangles.insert(mesh.triangles.end(),
+                          {{k, k + 2, k + 1}, {k, k + 1, k + 3}, {k, k + 3, k + 2}, {k + 1, k + 2, k + 3}});
   }
   const std::string alone_in = dir.file("ball.ply"), input = dir.file("ball-and-tets.ply");
   write_triangle_mesh(alone_in, ball);
@@ -243,7 +242,8 @@ TEST_CASE("limits: a muscle among 20 000 tiny tetrahedra is kept as repaired alo
   CHECK(j.at("status") == "repaired");
 }
 
-TEST_CASE("limits: 200 000 disjoint triangles read in bounded memory and repair ends cleanly", "[reliability][resource]") {
+TEST_CASE("limits: 200 000 disjoint triangles read in bounded memory and repair ends cleanly",
+          "[reliability][resource]") {
   test::TempDir dir;
   constexpr int n = 200000;
   TriangleMesh mesh;
@@ -300,8 +300,9 @@ TEST_CASE("limits: a time limit during alpha wrapping leaves no worker process b
   write_triangle_mesh(input, mesh);
   // A very fine alpha makes the wrap far longer than the 3 s limit.
   const std::string mark = test::unique_mark();
-  const int code = test::run_command(mark + " '" + test::program() + "' --quiet --time-limit 3 repair '" + input + "' -o '" +
-                                     dir.file("out.off") + "' --components merge --wrap-alpha 0.00005 --wrap-seconds 600 2>/dev/null");
+  const int code = test::run_command(mark + " '" + test::program() + "' --quiet --time-limit 3 repair '" + input +
+                                     "' -o '" + dir.file("out.off") +
+                                     "' --components merge --wrap-alpha 0.00005 --wrap-seconds 600 2>/dev/null");
   REQUIRE(code == exit_code(ErrorCode::time_limit));
   ::usleep(500 * 1000);
   const std::vector<int> left = test::processes_with_environment(mark);

@@ -47,7 +47,8 @@ TriangleMesh soup_to_mesh(const PolygonSoup& soup) {
 
 // A small broken mesh: a ball with holes and a flipped patch, overlapped by a second ball.
 TriangleMesh broken_mesh() {
-  TriangleMesh mesh = soup_to_mesh(inject(inject(make_icosphere(2), DefectKind::holes, 3), DefectKind::flipped_patch, 5));
+  TriangleMesh mesh =
+      soup_to_mesh(inject(inject(make_icosphere(2), DefectKind::holes, 3), DefectKind::flipped_patch, 5));
   const TriangleMesh other = make_icosphere(2);
   const int base = static_cast<int>(mesh.positions.size());
   for (const Vec3& p : other.positions) mesh.positions.push_back(p + Vec3(0.9, 0.2, 0.0));
@@ -72,7 +73,8 @@ class BusyThreads {
     tbb_ = std::thread([this] {
       std::vector<double> values(1 << 16);
       while (!stop_) {
-        tbb::parallel_for(std::size_t(0), values.size(), [&](std::size_t i) { values[i] = std::sin(double(i) + values[i]); });
+        tbb::parallel_for(std::size_t(0), values.size(),
+                          [&](std::size_t i) { values[i] = std::sin(double(i) + values[i]); });
         ++tbb_rounds_;
       }
     });
@@ -193,8 +195,8 @@ TEST_CASE("spawn: a missing wrap worker is a one-line error naming where it was 
   const TriangleMesh handle_mesh = soup_to_mesh(handle);
   const std::string input = dir.file("handle.off"), output = dir.file("out.off"), errors = dir.file("err.txt");
   write_triangle_mesh(input, handle_mesh);
-  const int code = test::run_command("FASCICLE_WRAP_WORKER='" + missing + "' '" + test::program() + "' --quiet repair '" +
-                                     input + "' -o '" + output + "' 2> '" + errors + "'");
+  const int code = test::run_command("FASCICLE_WRAP_WORKER='" + missing + "' '" + test::program() +
+                                     "' --quiet repair '" + input + "' -o '" + output + "' 2> '" + errors + "'");
   CHECK(code == exit_code(ErrorCode::file_missing));
   const std::string message = read_text(errors);
   INFO(message);
@@ -207,7 +209,8 @@ TEST_CASE("spawn: a missing wrap worker is a one-line error naming where it was 
   CHECK(fs::exists(output));
 }
 
-TEST_CASE("spawn: a worker that crashes, hangs or talks nonsense is reported, killed and reaped", "[spawn][reliability]") {
+TEST_CASE("spawn: a worker that crashes, hangs or talks nonsense is reported, killed and reaped",
+          "[spawn][reliability]") {
   test::TempDir dir;
   const TriangleMesh mesh = broken_mesh();
   const std::string mark = test::unique_mark();
@@ -230,8 +233,8 @@ TEST_CASE("spawn: a worker that crashes, hangs or talks nonsense is reported, ki
   // Exits with a status.
   CHECK(failure(write_script(dir, "exit.sh", "exit 7")).find("exited with status 7") != std::string::npos);
   // Exits 0 with garbage, or with nothing.
-  CHECK(failure(write_script(dir, "garbage.sh", "cat > /dev/null; printf 'xxxxxxxxxxxxxxxxxxxxxxxx'")).find("malformed") !=
-        std::string::npos);
+  CHECK(failure(write_script(dir, "garbage.sh", "cat > /dev/null; printf 'xxxxxxxxxxxxxxxxxxxxxxxx'"))
+            .find("malformed") != std::string::npos);
   CHECK(failure(write_script(dir, "silent.sh", "cat > /dev/null")).find("no result") != std::string::npos);
   // Never answers: killed at the time limit, nothing returned, nothing left running.
   const std::string hang = write_script(dir, "hang.sh", "exec sleep 600");
@@ -255,7 +258,8 @@ TEST_CASE("spawn: the wrap worker's memory limit", "[spawn][reliability]") {
     CHECK(std::string(e.what()).find("memory limit 64 MiB") != std::string::npos);
   }
   // A coarse wrap fits in a generous limit.
-  const std::optional<TriangleMesh> wrap = detail::alpha_wrap_with_time_limit(fine, 0.2, 0.2 / 30.0, 300.0, worker, 4096);
+  const std::optional<TriangleMesh> wrap =
+      detail::alpha_wrap_with_time_limit(fine, 0.2, 0.2 / 30.0, 300.0, worker, 4096);
   REQUIRE(wrap.has_value());
   CHECK(verify_genus0(*wrap).empty());
   RepairOptions bad;
@@ -269,15 +273,17 @@ TEST_CASE("spawn: a killed batch takes its decompose processes with it", "[spawn
   const fs::path in = dir.path() / "in";
   fs::create_directories(in);
   SampleOptions so;
-  for (int i = 0; i < 4; ++i) write_triangle_mesh((in / ("m" + std::to_string(i) + ".off")).string(), make_fusiform_muscle(so));
+  for (int i = 0; i < 4; ++i)
+    write_triangle_mesh((in / ("m" + std::to_string(i) + ".off")).string(), make_fusiform_muscle(so));
   const std::string mark = test::unique_mark();
   const std::string pid_file = dir.file("pid");
   // Start the batch in the background with a mark in its environment (decompose made to run for
   // hours: a fixed, huge number of settle iterations), kill it once a decompose runs, then look
   // for anything still carrying the mark.
-  REQUIRE(test::run_command(mark + " '" + test::program() + "' -q batch '" + in.string() + "' -o '" +
-                            (dir.path() / "out").string() + "' --jobs 2 --solver verlet --tolerance 0 --max-iterations 100000000 > /dev/null 2>&1 & echo $! > '" + pid_file +
-                            "'") == 0);
+  REQUIRE(test::run_command(
+              mark + " '" + test::program() + "' -q batch '" + in.string() + "' -o '" + (dir.path() / "out").string() +
+              "' --jobs 2 --solver verlet --tolerance 0 --max-iterations 100000000 > /dev/null 2>&1 & echo $! > '" +
+              pid_file + "'") == 0);
   std::string pid;
   for (int wait = 0; wait < 100 && pid.empty(); ++wait) {
     ::usleep(50 * 1000);

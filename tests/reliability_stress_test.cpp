@@ -64,7 +64,8 @@ std::string quoted(const std::string& s) { return "'" + s + "'"; }
 std::vector<Stage> stress_stages() {
   std::vector<Stage> stages;
   stages.push_back(Stage{
-      "repair", "off",
+      "repair",
+      "off",
       [](const std::string& in, const std::string& out, const std::string& report) {
         // A short wrap budget keeps the fixed seeds of `make test` quick; the time limit above
         // still bounds every run.
@@ -75,49 +76,43 @@ std::vector<Stage> stress_stages() {
         nlohmann::json j;
         try {
           j = nlohmann::json::parse(read_text(report));
-        } catch (const std::exception& e) {
-          return std::string("report is not JSON: ") + e.what();
-        }
+        } catch (const std::exception& e) { return std::string("report is not JSON: ") + e.what(); }
         const std::string status = j.value("status", "");
-        if (status != "repaired" && status != "unchanged" && status != "wrapped") return "report status '" + status + "'";
+        if (status != "repaired" && status != "unchanged" && status != "wrapped")
+          return "report status '" + status + "'";
         if (j["output"]["genus"] != 0 || j["output"]["components"] != 1) return "report census is not genus 0";
         try {
           const PolygonSoup soup = read_polygon_soup(out);
           const std::string verdict = verify_genus0(soup_triangles(soup));
           if (!verdict.empty()) return "output fails verification: " + verdict;
-        } catch (const Error& e) {
-          return std::string("output does not read back: ") + e.what();
-        }
+        } catch (const Error& e) { return std::string("output does not read back: ") + e.what(); }
         return "";
       }});
-  stages.push_back(Stage{
-      "decompose", "vtk",
-      [](const std::string& in, const std::string& out, const std::string& report) {
-        return "decompose " + quoted(in) + " -o " + quoted(out) + " --report " + quoted(report);
-      },
-      // Refusals: a sphere map that is not a bijection (solver), or fibres that fail the check
-      // (quality: then no fibre file is written).
-      {exit_code(ErrorCode::solver_diverged), exit_code(ErrorCode::quality), exit_code(ErrorCode::topology)},
-      [](const std::string& out, const std::string& report) -> std::string {
-        nlohmann::json j;
-        try {
-          j = nlohmann::json::parse(read_text(report));
-        } catch (const std::exception& e) {
-          return std::string("report is not JSON: ") + e.what();
-        }
-        if (j.value("status", "") != "ok") return "report status '" + j.value("status", "") + "'";
-        if (j["quality"]["inside_fraction"] != 1.0) return "a fibre point is outside";
-        try {
-          const Polylines fibres = read_polylines(out);
-          if (fibres.lines.size() != 100) return "fibre count " + std::to_string(fibres.lines.size());
-          for (const auto& line : fibres.lines)
-            for (const Vec3& p : line)
-              if (!p.allFinite()) return "a fibre point is not finite";
-        } catch (const Error& e) {
-          return std::string("fibres do not read back: ") + e.what();
-        }
-        return "";
-      }});
+  stages.push_back(
+      Stage{"decompose",
+            "vtk",
+            [](const std::string& in, const std::string& out, const std::string& report) {
+              return "decompose " + quoted(in) + " -o " + quoted(out) + " --report " + quoted(report);
+            },
+            // Refusals: a sphere map that is not a bijection (solver), or fibres that fail the check
+            // (quality: then no fibre file is written).
+            {exit_code(ErrorCode::solver_diverged), exit_code(ErrorCode::quality), exit_code(ErrorCode::topology)},
+            [](const std::string& out, const std::string& report) -> std::string {
+              nlohmann::json j;
+              try {
+                j = nlohmann::json::parse(read_text(report));
+              } catch (const std::exception& e) { return std::string("report is not JSON: ") + e.what(); }
+              if (j.value("status", "") != "ok") return "report status '" + j.value("status", "") + "'";
+              if (j["quality"]["inside_fraction"] != 1.0) return "a fibre point is outside";
+              try {
+                const Polylines fibres = read_polylines(out);
+                if (fibres.lines.size() != 100) return "fibre count " + std::to_string(fibres.lines.size());
+                for (const auto& line : fibres.lines)
+                  for (const Vec3& p : line)
+                    if (!p.allFinite()) return "a fibre point is not finite";
+              } catch (const Error& e) { return std::string("fibres do not read back: ") + e.what(); }
+              return "";
+            }});
   return stages;
 }
 
@@ -129,7 +124,8 @@ PolygonSoup weld_exact(const PolygonSoup& soup) {
   std::vector<int> remap(soup.points.size());
   for (std::size_t i = 0; i < soup.points.size(); ++i) {
     const Vec3& p = soup.points[i];
-    const auto [it, inserted] = index.emplace(std::make_tuple(p.x(), p.y(), p.z()), static_cast<int>(out.points.size()));
+    const auto [it, inserted] =
+        index.emplace(std::make_tuple(p.x(), p.y(), p.z()), static_cast<int>(out.points.size()));
     if (inserted) out.points.push_back(p);
     remap[i] = it->second;
   }

@@ -39,7 +39,7 @@ void check_repair(const std::string& file, bool must_succeed) {
                              " repair --wrap-seconds " + std::to_string(static_cast<int>(40 * test::time_scale()));
   const int code = test::run_command("'" + test::program() + "' --quiet" + limits + " '" + file + "' -o '" + out +
                                      "' --report '" + report + "' 2>'" + err + "'");
-  CHECK(stamp(file) == before);  // the input is never touched
+  CHECK(stamp(file) == before);                                 // the input is never touched
   for (const auto& entry : fs::directory_iterator(dir.path()))  // no temporary file left behind
     CHECK(entry.path().filename().string().find(".tmp.") == std::string::npos);
   const std::string stderr_text = read_text(err);

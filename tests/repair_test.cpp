@@ -58,8 +58,8 @@ long step_changed(const RepairReport& report, const std::string& name) {
 }  // namespace
 
 TEST_CASE("weld merges exact and near duplicates within tolerance only", "[repair]") {
-  const std::vector<Vec3> pts = {Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(1e-9, 0, 0), Vec3(1, 0, 0), Vec3(1 + 5e-7, 0, 0),
-                                 Vec3(2, 0, 0)};
+  const std::vector<Vec3> pts = {Vec3(0, 0, 0), Vec3(0, 0, 0),        Vec3(1e-9, 0, 0),
+                                 Vec3(1, 0, 0), Vec3(1 + 5e-7, 0, 0), Vec3(2, 0, 0)};
   const WeldResult exact = weld_vertices(pts, 0.0);
   CHECK(exact.merged == 1);
   CHECK(exact.representative[1] == 0);
@@ -220,7 +220,8 @@ TEST_CASE("the built-in sample repairs to a faithful genus-0 mesh", "[repair]") 
   CHECK(r.report.input.components > 1);
   CHECK(r.report.input.boundary_edges > 0);
   const nlohmann::json j = r.report.to_json();
-  for (const char* key : {"status", "input", "output", "steps", "fallback", "hausdorff", "seconds"}) CHECK(j.contains(key));
+  for (const char* key : {"status", "input", "output", "steps", "fallback", "hausdorff", "seconds"})
+    CHECK(j.contains(key));
   for (const char* key : {"vertices", "faces", "components", "boundary_edges", "non_manifold_edges", "genus",
                           "self_intersections", "volume"})
     CHECK(j["output"].contains(key));
@@ -241,9 +242,7 @@ TEST_CASE("a handle is closed by the alpha-wrap fallback, or refused without it"
   try {
     repair_mesh(with_handle, no_wrap);
     FAIL("expected a refusal");
-  } catch (const TopologyError& e) {
-    CHECK(e.code() == ErrorCode::repair_failed);
-  }
+  } catch (const TopologyError& e) { CHECK(e.code() == ErrorCode::repair_failed); }
 }
 
 TEST_CASE("a torus with a large hole is refused with a clear error", "[repair]") {

@@ -100,8 +100,8 @@ void compare_with_cpu(int n, SpringModel model, int iterations, GpuBackend backe
   const double difference = max_distance(cpu.positions, gpu.positions);
   const double moved = max_distance(cpu.positions, lattice.system.positions);
   INFO("backend " << report.backend << ", n " << n << ", model-" << static_cast<int>(model) << ", iterations "
-                  << iterations << ": max difference " << difference << " (" << difference / size
-                  << " of the size " << size << "), largest move " << moved);
+                  << iterations << ": max difference " << difference << " (" << difference / size << " of the size "
+                  << size << "), largest move " << moved);
   CHECK(difference < 1e-4 * size);
   CHECK(moved > 100 * 1e-4 * size);
   CHECK(report.residual < report.residual_history.front());  // it settles
@@ -168,9 +168,7 @@ TEST_CASE("a device named by index opens on that device", "[gpu]") {
       CHECK(!gl.renderer().empty());
       if (device.software) CHECK(!gl.hardware());
       ++opened;
-    } catch (const GpuError& e) {
-      WARN("device " << device.index << " has no OpenGL core context: " << e.what());
-    }
+    } catch (const GpuError& e) { WARN("device " << device.index << " has no OpenGL core context: " << e.what()); }
   }
   if (!devices.empty()) CHECK(opened > 0);
   context();  // the shared context is current again
@@ -179,8 +177,9 @@ TEST_CASE("a device named by index opens on that device", "[gpu]") {
 TEST_CASE("a shader that does not compile throws GpuError carrying the driver's log", "[gpu]") {
   context();
   try {
-    compile_program_sources({{"broken.comp", "#version 430\nlayout(local_size_x = 1) in;\n"
-                                             "void main() { undeclared_variable = 1.0; }\n"}});
+    compile_program_sources({{"broken.comp",
+                              "#version 430\nlayout(local_size_x = 1) in;\n"
+                              "void main() { undeclared_variable = 1.0; }\n"}});
     FAIL("no error");
   } catch (const GpuError& e) {
     const std::string what = e.what();
@@ -189,7 +188,7 @@ TEST_CASE("a shader that does not compile throws GpuError carrying the driver's 
     CHECK(what.find("broken.comp") != std::string::npos);
     CHECK(what.find("does not compile") != std::string::npos);
     CHECK(what.find("undeclared_variable") != std::string::npos);  // from the driver's log
-    CHECK(what.find('\n') == std::string::npos);                    // one line
+    CHECK(what.find('\n') == std::string::npos);                   // one line
   }
   // A link failure every driver reports: a compute stage linked with a vertex stage (OpenGL 4.6
   // section 7.3; NVIDIA links mismatched vertex/fragment interface types without an error).
@@ -208,10 +207,12 @@ TEST_CASE("every embedded shader compiles and links", "[gpu]") {
   context();
   const std::vector<std::string> names = embedded_shader_names();
   CHECK(names.size() >= 8);
-  for (const std::vector<std::string>& program :
-       {std::vector<std::string>{"verlet_lattice.comp"}, {"verlet_csr.comp"}, {"force_residual.comp"},
-        {"verlet_energy.comp"},
-        {"spring_force.vert", "spring_force.geom", "spring_force.frag"}, {"fullscreen.vert", "verlet_integrate.frag"}}) {
+  for (const std::vector<std::string>& program : {std::vector<std::string>{"verlet_lattice.comp"},
+                                                  {"verlet_csr.comp"},
+                                                  {"force_residual.comp"},
+                                                  {"verlet_energy.comp"},
+                                                  {"spring_force.vert", "spring_force.geom", "spring_force.frag"},
+                                                  {"fullscreen.vert", "verlet_integrate.frag"}}) {
     unsigned id = 0;
     CHECK_NOTHROW(id = compile_program(program));
     CHECK(id != 0);
@@ -322,9 +323,7 @@ TEST_CASE("energy growth on the GPU stops the solve early with the CPU's SolverE
       std::string message;
       try {
         settle_gpu(context(), system, options, gpu_options, &shape);
-      } catch (const SolverError& e) {
-        message = e.what();
-      }
+      } catch (const SolverError& e) { message = e.what(); }
       INFO(gpu_backend_name(backend) << " " << backend_name(path) << ": " << message);
       // Caught by the energy bound at a check (a multiple of energy_interval), long before the
       // 2000 iterations, naming the option to change; nothing written.
@@ -457,7 +456,8 @@ TEST_CASE("a Verlet residual that rises while the lattice swings is not a stall"
   for (std::size_t i = 0; i < lattice.system.positions.size(); ++i) {
     if (!lattice.system.fixed[i]) continue;
     Vec3& p = lattice.system.positions[i];
-    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(), p.z() + 0.15 * p.x() * p.x());
+    p = Vec3(1.3 * p.x() + 0.2 * std::sin(2.0 * p.z()), 0.8 * p.y() + 0.1 * p.x() * p.z(),
+             p.z() + 0.15 * p.x() * p.x());
   }
   const LatticeShape shape = shape_of(lattice);
   SettleOptions options;

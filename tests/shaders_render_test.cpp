@@ -187,8 +187,8 @@ TEST_CASE("a capsule with fibres renders: background, mesh over the centre, orig
     INFO("view " << v);
     const int x0 = (v % 2) * 400, y0 = (v / 2) * 300;
     // Tile corners and a point just beyond the capsule's side are background.
-    for (const auto& [x, y] : {std::pair<int, int>{x0 + 1, y0 + 1}, {x0 + 398, y0 + 1}, {x0 + 1, y0 + 298},
-                               {x0 + 398, y0 + 298}})
+    for (const auto& [x, y] :
+         {std::pair<int, int>{x0 + 1, y0 + 1}, {x0 + 398, y0 + 1}, {x0 + 1, y0 + 298}, {x0 + 398, y0 + 298}})
       CHECK(equals(image.pixel(x, y), 255, 255, 255));
     const Camera& c = cameras[v];
     const auto outside = project(c, options, v, c.centre + 1.25 * kRadius * c.up);
@@ -205,14 +205,14 @@ TEST_CASE("a capsule with fibres renders: background, mesh over the centre, orig
     CHECK(near_origin[0] < near_insertion[0]);
     const auto po = image.pixel(near_origin[0], near_origin[1]);
     const auto pi = image.pixel(near_insertion[0], near_insertion[1]);
-    INFO("origin pixel " << int(po[0]) << "," << int(po[1]) << "," << int(po[2]) << " insertion pixel "
-                         << int(pi[0]) << "," << int(pi[1]) << "," << int(pi[2]));
+    INFO("origin pixel " << int(po[0]) << "," << int(po[1]) << "," << int(po[2]) << " insertion pixel " << int(pi[0])
+                         << "," << int(pi[1]) << "," << int(pi[2]));
     CHECK(hue_distance(hue_of(po), hue_of(pi)) > 90.0);
     CHECK(hue_of(po) > 240.0);  // purple
     CHECK(hue_of(pi) > 30.0);   // yellow
     CHECK(hue_of(pi) < 90.0);
-    CHECK(po[2] > po[1]);       // blue over green at the origin end
-    CHECK(pi[1] > pi[2]);       // green over blue at the insertion end
+    CHECK(po[2] > po[1]);  // blue over green at the origin end
+    CHECK(pi[1] > pi[2]);  // green over blue at the insertion end
   }
 
   // Without fibres the centre of every tile is the mesh (not background), and a black
@@ -278,8 +278,8 @@ TEST_CASE("fascicle render draws raw corpus muscles as read", "[gpu][program][co
   test::TempDir dir;
   // Unrepaired: the LHDL file with its blank header line, and an STL soup with hundreds of
   // non-manifold edges.
-  for (const std::string name : {"muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk",
-                                 "muscles/opendihu/left_biceps_brachii.stl"}) {
+  for (const std::string name :
+       {"muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk", "muscles/opendihu/left_biceps_brachii.stl"}) {
     INFO(name);
     const std::string out = dir.file("muscle.png");
     REQUIRE(test::run_command(test::program() + " -q render " + test::data_dir() + "/" + name + " -o " + out +

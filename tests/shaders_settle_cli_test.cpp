@@ -52,7 +52,8 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
   targets.close();
   const std::string base = test::program() + " --quiet settle " + input + " --targets " + dir.file("targets.txt") +
                            " --tolerance 0 --max-iterations 300";
-  REQUIRE(test::run_command(base + " --backend cpu -o " + dir.file("cpu.txt") + " --report " + dir.file("cpu.json")) == 0);
+  REQUIRE(test::run_command(base + " --backend cpu -o " + dir.file("cpu.txt") + " --report " + dir.file("cpu.json")) ==
+          0);
   const ThesisModel cpu = read_thesis_model(dir.file("cpu.txt"));
   const nlohmann::json cpu_report = read_json(dir.file("cpu.json"));
   CHECK(cpu_report["compute_backend"] == "cpu");
@@ -83,7 +84,8 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
     }
   }
   // auto: the CPU unless a hardware GPU and a large lattice; the report says why.
-  REQUIRE(test::run_command(base + " --backend auto -o " + dir.file("auto.txt") + " --report " + dir.file("auto.json")) == 0);
+  REQUIRE(test::run_command(base + " --backend auto -o " + dir.file("auto.txt") + " --report " +
+                            dir.file("auto.json")) == 0);
   const nlohmann::json automatic = read_json(dir.file("auto.json"));
   CHECK(automatic["compute_backend"] == "cpu");
   CHECK(automatic["backend_reason"].get<std::string>().find("below") != std::string::npos);
@@ -99,8 +101,8 @@ TEST_CASE("fascicle settle --backend gl and gl-gs give the CPU's result", "[gpu]
   CHECK(test::run_command(base + " --backend gl --gpu-check-interval 0" + out) == exit_code(ErrorCode::invalid_option));
   CHECK(!std::filesystem::exists(dir.file("x.txt")));
   // The static solver's momentum method runs on gl.
-  CHECK(test::run_command(base + " --backend gl --solver static -o " + dir.file("static.txt") +
-                          " --report " + dir.file("static.json")) == 0);
+  CHECK(test::run_command(base + " --backend gl --solver static -o " + dir.file("static.txt") + " --report " +
+                          dir.file("static.json")) == 0);
   const nlohmann::json statics = read_json(dir.file("static.json"));
   CHECK(statics["compute_backend"] == "gl");
   CHECK(statics["solver"] == "static");
@@ -140,7 +142,8 @@ TEST_CASE("fascicle settle --backend gl polishes a float32 stall on the CPU (--g
   CHECK(raw["gpu"]["polished"] == false);
   CHECK(raw["gpu"]["polish_iterations"] == 0);
   CHECK(raw["residual"].get<double>() > 1e-4);
-  REQUIRE(test::run_command(base + " --backend gl -o " + dir.file("polished.txt") + " --report " + dir.file("polished.json")) == 0);
+  REQUIRE(test::run_command(base + " --backend gl -o " + dir.file("polished.txt") + " --report " +
+                            dir.file("polished.json")) == 0);
   const nlohmann::json polished = read_json(dir.file("polished.json"));
   INFO(polished.dump());
   CHECK(polished["gpu"]["stalled"] == true);
@@ -155,7 +158,8 @@ TEST_CASE("fascicle settle --backend gl polishes a float32 stall on the CPU (--g
   const ThesisModel cpu = read_thesis_model(dir.file("cpu.txt")), gpu = read_thesis_model(dir.file("polished.txt"));
   REQUIRE(gpu.points.size() == cpu.points.size());
   double difference = 0.0;
-  for (std::size_t i = 0; i < gpu.points.size(); ++i) difference = std::max(difference, (gpu.points[i] - cpu.points[i]).norm());
+  for (std::size_t i = 0; i < gpu.points.size(); ++i)
+    difference = std::max(difference, (gpu.points[i] - cpu.points[i]).norm());
   CHECK(difference < 1e-3);
 }
 

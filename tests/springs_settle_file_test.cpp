@@ -55,7 +55,10 @@ TEST_CASE("target files: good lines, comments, and one error per problem", "[spr
   REQUIRE(targets.size() == 2);
   CHECK(targets[1].index == 5);
   CHECK(targets[1].position == Vec3(-1e-3, 0.5, 7));
-  struct Bad { const char* text; ErrorCode code; };
+  struct Bad {
+    const char* text;
+    ErrorCode code;
+  };
   for (Bad bad : {Bad{"0 1 2\n", ErrorCode::malformed}, Bad{"0 1 2 nan\n", ErrorCode::bad_number},
                   Bad{"-1 1 2 3\n", ErrorCode::bad_number}, Bad{"x 1 2 3\n", ErrorCode::bad_number},
                   Bad{"# nothing\n", ErrorCode::file_empty}, Bad{"0 1 2 1e999\n", ErrorCode::bad_number}}) {
@@ -73,9 +76,7 @@ TEST_CASE("target files: good lines, comments, and one error per problem", "[spr
   try {
     read_targets(dir.file("missing.txt"));
     FAIL("no error");
-  } catch (const InputError& e) {
-    CHECK(e.code() == ErrorCode::file_missing);
-  }
+  } catch (const InputError& e) { CHECK(e.code() == ErrorCode::file_missing); }
 }
 
 TEST_CASE("targets move only fixed points", "[springs][settle]") {
@@ -140,7 +141,8 @@ TEST_CASE("fascicle settle on a thesis-format lattice", "[springs][settle][progr
     SpringSystem check = spring_system_from_thesis(to_thesis_model(lattice), 1.0);
     CHECK(relative_residual(check, settled.points) <= 1e-8);
     for (int i = 0; i < lattice.point_count(); ++i)
-      if (lattice.system.fixed[i]) CHECK(settled.points[i].x() == Approx(1.2 * lattice.system.positions[i].x()).margin(1e-6));
+      if (lattice.system.fixed[i])
+        CHECK(settled.points[i].x() == Approx(1.2 * lattice.system.positions[i].x()).margin(1e-6));
   }
   // --tolerance 0 runs exactly K iterations; .vtk writes the fibres.
   REQUIRE(test::run_command(test::program() + " --quiet settle " + input + " --targets " + targets +

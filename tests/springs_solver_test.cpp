@@ -63,43 +63,43 @@ SettleOptions verlet_options() {
 TEST_CASE("structured and general Verlet paths agree to 1e-9", "[springs][solver]") {
   // Every spring loop of the structured path.
   for (int loop : {2, 1, 0}) {  // the AVX-512 loop (where the processor has it), AVX2, plain
-  const bool simd = loop > 0;
-  detail::set_structured_simd(simd);
-  detail::set_structured_avx512(loop == 2);
-  for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
-    for (TemplateKind kind : {TemplateKind::pennate, TemplateKind::curved}) {
-      INFO(template_name(kind) << " model-" << static_cast<int>(model) << " loop "
-                               << detail::structured_simd_name());
-      const Lattice lattice = moved_lattice(kind, 90, 11, model);
-      const LatticeShape shape = shape_of(lattice);
-      SettleOptions options = verlet_options();
-      options.tolerance = 0.0;
-      options.max_iterations = 300;
-      options.backend = Backend::structured;
-      SpringSystem structured = lattice.system;
-      const SettleReport a = settle(structured, options, &shape);
-      options.backend = Backend::general;
-      SpringSystem general = lattice.system;
-      const SettleReport b = settle(general, options, &shape);
-      // pennate: every direction's springs have one length (the uniform rows); curved: not
-      CHECK(a.backend == (kind == TemplateKind::pennate ? "structured-uniform" : "structured"));
-      CHECK(b.backend == "general");
-      CHECK(a.iterations == 300);
-      CHECK(b.iterations == 300);
-      // the systems moved a lot, and moved the same way
-      CHECK(max_distance(structured.positions, lattice.system.positions) > 1e-2);
-      CHECK(max_distance(structured.positions, general.positions) <= 1e-9 * std::sqrt(3.0));
-      REQUIRE(a.residual_history.size() == b.residual_history.size());
-      for (std::size_t i = 0; i < a.residual_history.size(); ++i)
-        CHECK(a.residual_history[i] == Approx(b.residual_history[i]).epsilon(1e-9).margin(1e-9));
+    const bool simd = loop > 0;
+    detail::set_structured_simd(simd);
+    detail::set_structured_avx512(loop == 2);
+    for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+      for (TemplateKind kind : {TemplateKind::pennate, TemplateKind::curved}) {
+        INFO(template_name(kind) << " model-" << static_cast<int>(model) << " loop " << detail::structured_simd_name());
+        const Lattice lattice = moved_lattice(kind, 90, 11, model);
+        const LatticeShape shape = shape_of(lattice);
+        SettleOptions options = verlet_options();
+        options.tolerance = 0.0;
+        options.max_iterations = 300;
+        options.backend = Backend::structured;
+        SpringSystem structured = lattice.system;
+        const SettleReport a = settle(structured, options, &shape);
+        options.backend = Backend::general;
+        SpringSystem general = lattice.system;
+        const SettleReport b = settle(general, options, &shape);
+        // pennate: every direction's springs have one length (the uniform rows); curved: not
+        CHECK(a.backend == (kind == TemplateKind::pennate ? "structured-uniform" : "structured"));
+        CHECK(b.backend == "general");
+        CHECK(a.iterations == 300);
+        CHECK(b.iterations == 300);
+        // the systems moved a lot, and moved the same way
+        CHECK(max_distance(structured.positions, lattice.system.positions) > 1e-2);
+        CHECK(max_distance(structured.positions, general.positions) <= 1e-9 * std::sqrt(3.0));
+        REQUIRE(a.residual_history.size() == b.residual_history.size());
+        for (std::size_t i = 0; i < a.residual_history.size(); ++i)
+          CHECK(a.residual_history[i] == Approx(b.residual_history[i]).epsilon(1e-9).margin(1e-9));
+      }
     }
-  }
   }
   detail::set_structured_simd(true);
   detail::set_structured_avx512(true);
 }
 
-TEST_CASE("the general path's spring-once loop gives the per-point gather's bits on one thread or two", "[springs][solver]") {
+TEST_CASE("the general path's spring-once loop gives the per-point gather's bits on one thread or two",
+          "[springs][solver]") {
   // 11^3 points: one block, where the general path evaluates each spring once.
   for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
     for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
@@ -148,44 +148,44 @@ TEST_CASE("the structured path gives bitwise the same result on 1, 2 or 3 thread
     detail::set_structured_simd(simd);
     detail::set_structured_avx512(loop == 2);
     for (int fibres : {1600, 1400})
-    for (bool boundary_fixed : {true, false})
-    for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
-      Lattice lattice = moved_lattice(TemplateKind::curved, fibres, 25, model);
-      REQUIRE(lattice.point_count() > 32768);
-      REQUIRE(lattice.nx == (fibres == 1600 ? 40 : 35));
-      if (!boundary_fixed) std::fill(lattice.system.fixed.begin(), lattice.system.fixed.end(), 0);
-      std::mt19937 rng(3);
-      for (int i = 0; i < 40; ++i) lattice.system.fixed[rng() % lattice.system.fixed.size()] = 1;
-      const LatticeShape shape = shape_of(lattice);
-      std::vector<std::vector<Vec3>> results;
-      std::vector<double> residuals;
-      SettleOptions options = verlet_options();
-      options.tolerance = 0.0;
-      options.max_iterations = 40;
-      for (int threads : {1, 2, 3}) {
-        tbb::task_arena arena(threads);
-        arena.execute([&] {
-          options.backend = Backend::structured;
-          SpringSystem system = lattice.system;
-          const SettleReport report = settle(system, options, &shape);
-          CHECK(report.backend == "structured");
-          results.push_back(system.positions);
-          residuals.push_back(report.residual);
-        });
-      }
-      options.backend = Backend::general;
-      SpringSystem general = lattice.system;
-      settle(general, options, &shape);
-      INFO("nx " << lattice.nx << " boundary fixed " << boundary_fixed << " model-" << static_cast<int>(model)
-                 << " loop " << detail::structured_simd_name());
-      CHECK(max_distance(results[0], lattice.system.positions) > 1e-3);  // it moved
-      CHECK(max_distance(results[0], general.positions) <= 1e-9 * std::sqrt(3.0));
-      for (int t = 1; t < 3; ++t) {
-        CHECK(residuals[t] == residuals[0]);
-        for (std::size_t i = 0; i < results[0].size(); ++i)
-          REQUIRE(std::memcmp(results[0][i].data(), results[t][i].data(), 3 * sizeof(double)) == 0);
-      }
-    }
+      for (bool boundary_fixed : {true, false})
+        for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
+          Lattice lattice = moved_lattice(TemplateKind::curved, fibres, 25, model);
+          REQUIRE(lattice.point_count() > 32768);
+          REQUIRE(lattice.nx == (fibres == 1600 ? 40 : 35));
+          if (!boundary_fixed) std::fill(lattice.system.fixed.begin(), lattice.system.fixed.end(), 0);
+          std::mt19937 rng(3);
+          for (int i = 0; i < 40; ++i) lattice.system.fixed[rng() % lattice.system.fixed.size()] = 1;
+          const LatticeShape shape = shape_of(lattice);
+          std::vector<std::vector<Vec3>> results;
+          std::vector<double> residuals;
+          SettleOptions options = verlet_options();
+          options.tolerance = 0.0;
+          options.max_iterations = 40;
+          for (int threads : {1, 2, 3}) {
+            tbb::task_arena arena(threads);
+            arena.execute([&] {
+              options.backend = Backend::structured;
+              SpringSystem system = lattice.system;
+              const SettleReport report = settle(system, options, &shape);
+              CHECK(report.backend == "structured");
+              results.push_back(system.positions);
+              residuals.push_back(report.residual);
+            });
+          }
+          options.backend = Backend::general;
+          SpringSystem general = lattice.system;
+          settle(general, options, &shape);
+          INFO("nx " << lattice.nx << " boundary fixed " << boundary_fixed << " model-" << static_cast<int>(model)
+                     << " loop " << detail::structured_simd_name());
+          CHECK(max_distance(results[0], lattice.system.positions) > 1e-3);  // it moved
+          CHECK(max_distance(results[0], general.positions) <= 1e-9 * std::sqrt(3.0));
+          for (int t = 1; t < 3; ++t) {
+            CHECK(residuals[t] == residuals[0]);
+            for (std::size_t i = 0; i < results[0].size(); ++i)
+              REQUIRE(std::memcmp(results[0][i].data(), results[t][i].data(), 3 * sizeof(double)) == 0);
+          }
+        }
   }
   detail::set_structured_simd(true);
   detail::set_structured_avx512(true);
@@ -235,7 +235,11 @@ TEST_CASE("fixed points are bitwise unchanged by every solver", "[springs][solve
   lattice.system.positions[lattice.index(3, 3, 4)] = Vec3(-0.0, 0.5, 0.5);  // a negative zero
   lattice.system.fixed[lattice.index(3, 3, 4)] = 1;
   const LatticeShape shape = shape_of(lattice);
-  struct Case { SolverKind solver; Backend backend; StaticMethod method; };
+  struct Case {
+    SolverKind solver;
+    Backend backend;
+    StaticMethod method;
+  };
   for (Case c : {Case{SolverKind::verlet, Backend::structured, StaticMethod::momentum},
                  Case{SolverKind::verlet, Backend::general, StaticMethod::momentum},
                  Case{SolverKind::static_equilibrium, Backend::automatic, StaticMethod::momentum},
@@ -357,7 +361,7 @@ TEST_CASE("extreme masses converge or stop with SolverError, never NaN", "[sprin
       }
     }
   }
-  CHECK(diverged > 0);    // a fixed step too large for the small masses is caught
+  CHECK(diverged > 0);     // a fixed step too large for the small masses is caught
   CHECK(converged >= 12);  // the automatic step converges at every mass
 }
 
@@ -378,9 +382,7 @@ TEST_CASE("stiffness scaled over 6 orders converges or stops with SolverError, n
         CHECK(report.backend == "general");
         CHECK(all_finite(system.positions));
         if (report.converged) ++converged;
-      } catch (const SolverError&) {
-        ++diverged;
-      }
+      } catch (const SolverError&) { ++diverged; }
       SettleOptions statics;
       statics.solver = SolverKind::static_equilibrium;
       statics.tolerance = 1e-9;
@@ -396,43 +398,43 @@ TEST_CASE("stiffness scaled over 6 orders converges or stops with SolverError, n
 
 TEST_CASE("the same lattice at 1e-6 and 1e4 length scale gives the same relative result", "[springs][solver]") {
   for (SolverKind solver : {SolverKind::verlet, SolverKind::static_equilibrium}) {
-   for (StaticMethod method : {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global,
-                               StaticMethod::multigrid}) {
-    if (solver == SolverKind::verlet && method != StaticMethod::momentum) continue;
-    std::vector<std::vector<Vec3>> results;
-    std::vector<SettleReport> reports;
-    for (double scale : {1e-6, 1.0, 1e4}) {
-      Lattice lattice = moved_lattice(TemplateKind::fanned, 25, 6, SpringModel::model6);
-      SpringSystem& system = lattice.system;
-      for (Vec3& p : system.positions) p *= scale;
-      for (Spring& s : system.springs) {
-        s.rest *= scale;
-        s.stiffness = 1.0 / s.rest;
+    for (StaticMethod method :
+         {StaticMethod::momentum, StaticMethod::newton, StaticMethod::local_global, StaticMethod::multigrid}) {
+      if (solver == SolverKind::verlet && method != StaticMethod::momentum) continue;
+      std::vector<std::vector<Vec3>> results;
+      std::vector<SettleReport> reports;
+      for (double scale : {1e-6, 1.0, 1e4}) {
+        Lattice lattice = moved_lattice(TemplateKind::fanned, 25, 6, SpringModel::model6);
+        SpringSystem& system = lattice.system;
+        for (Vec3& p : system.positions) p *= scale;
+        for (Spring& s : system.springs) {
+          s.rest *= scale;
+          s.stiffness = 1.0 / s.rest;
+        }
+        for (double& m : system.mass) m *= scale * scale * scale;  // density x volume
+        SettleOptions options;
+        options.solver = solver;
+        options.static_method = method;
+        options.damping_mode = DampingMode::critical;
+        // Verlet: a fixed number of steps; static: to a tight tolerance.
+        options.tolerance = solver == SolverKind::verlet ? 0.0 : 1e-10;
+        options.max_iterations = solver == SolverKind::verlet ? 400 : 10000;
+        const LatticeShape shape = shape_of(lattice);
+        reports.push_back(settle(system, options, &shape));
+        for (Vec3& p : system.positions) p /= scale;
+        results.push_back(system.positions);
       }
-      for (double& m : system.mass) m *= scale * scale * scale;  // density x volume
-      SettleOptions options;
-      options.solver = solver;
-      options.static_method = method;
-      options.damping_mode = DampingMode::critical;
-      // Verlet: a fixed number of steps; static: to a tight tolerance.
-      options.tolerance = solver == SolverKind::verlet ? 0.0 : 1e-10;
-      options.max_iterations = solver == SolverKind::verlet ? 400 : 10000;
-      const LatticeShape shape = shape_of(lattice);
-      reports.push_back(settle(system, options, &shape));
-      for (Vec3& p : system.positions) p /= scale;
-      results.push_back(system.positions);
+      INFO(solver_name(solver) << " method " << static_cast<int>(method));
+      CHECK(max_distance(results[0], results[1]) < 1e-9);
+      CHECK(max_distance(results[2], results[1]) < 1e-9);
+      if (solver == SolverKind::verlet) {
+        CHECK(reports[0].residual == Approx(reports[1].residual).epsilon(1e-6));
+        CHECK(reports[2].residual == Approx(reports[1].residual).epsilon(1e-6));
+        CHECK(reports[1].residual < 1e-2);  // it did settle
+      } else {
+        for (const SettleReport& r : reports) CHECK(r.converged);
+      }
     }
-    INFO(solver_name(solver) << " method " << static_cast<int>(method));
-    CHECK(max_distance(results[0], results[1]) < 1e-9);
-    CHECK(max_distance(results[2], results[1]) < 1e-9);
-    if (solver == SolverKind::verlet) {
-      CHECK(reports[0].residual == Approx(reports[1].residual).epsilon(1e-6));
-      CHECK(reports[2].residual == Approx(reports[1].residual).epsilon(1e-6));
-      CHECK(reports[1].residual < 1e-2);  // it did settle
-    } else {
-      for (const SettleReport& r : reports) CHECK(r.converged);
-    }
-   }
   }
 }
 
@@ -532,12 +534,13 @@ TEST_CASE("a spring matrix factor made ahead gives the local-global solve's bits
   // solves then move the fixed points and change the rest lengths, as the decomposition does.
   const Lattice lattice = moved_lattice(TemplateKind::curved, 36, 6, SpringModel::model6);
   const std::shared_ptr<const SpringMatrixFactor> factor = factor_spring_matrix(build_lattice([] {
-    LatticeOptions o;
-    o.kind = TemplateKind::curved;
-    o.fibres = 36;
-    o.resolution = 6;
-    return o;
-  }()).system);
+                                                                                  LatticeOptions o;
+                                                                                  o.kind = TemplateKind::curved;
+                                                                                  o.fibres = 36;
+                                                                                  o.resolution = 6;
+                                                                                  return o;
+                                                                                }())
+                                                                                    .system);
   for (bool zero_rest : {true, false}) {
     INFO("zero rest lengths " << zero_rest);
     SpringSystem system = lattice.system;
@@ -576,9 +579,7 @@ TEST_CASE("a spring matrix factor made ahead gives the local-global solve's bits
     try {
       settle(*other, options, nullptr, factor);
       FAIL("a factor made for another system was used");
-    } catch (const Error& e) {
-      CHECK(e.code() == ErrorCode::internal);
-    }
+    } catch (const Error& e) { CHECK(e.code() == ErrorCode::internal); }
   }
   // The other methods ignore it.
   options.static_method = StaticMethod::momentum;
@@ -673,8 +674,7 @@ double vcycle_factor(LatticeMultigrid& multigrid, std::size_t points) {
 
 }  // namespace
 
-TEST_CASE("the multigrid V-cycle reduces the Laplacian residual by a factor independent of n",
-          "[springs][multigrid]") {
+TEST_CASE("the multigrid V-cycle reduces the Laplacian residual by a factor independent of n", "[springs][multigrid]") {
   for (SpringModel model : {SpringModel::model6, SpringModel::model26}) {
     for (bool lines : {true, false}) {
       std::vector<int> levels;
@@ -709,7 +709,8 @@ TEST_CASE("the multigrid V-cycle reduces the Laplacian residual by a factor inde
     MultigridOptions options;
     options.coarsest_points = 200;
     const std::vector<std::array<double, 3>>* none = nullptr;
-    for (const std::vector<std::array<double, 3>>* w : {none, static_cast<const std::vector<std::array<double, 3>>*>(&weights)}) {
+    for (const std::vector<std::array<double, 3>>* w :
+         {none, static_cast<const std::vector<std::array<double, 3>>*>(&weights)}) {
       LatticeMultigrid multigrid(lattice.system, shape_of(lattice), options, w);
       INFO("model-" << static_cast<int>(model) << " weighted " << (w != nullptr) << " levels " << multigrid.levels());
       CHECK(multigrid.levels() >= 3);
@@ -910,7 +911,8 @@ TEST_CASE("the coarse start reproduces a rigid motion and reaches the fine solve
   }
 }
 
-TEST_CASE("the coarse start's perturbation is fixed and bounded and moves only free model-6 points", "[springs][solver]") {
+TEST_CASE("the coarse start's perturbation is fixed and bounded and moves only free model-6 points",
+          "[springs][solver]") {
   // The bench problem (squeezed along y) at 12^3: one coarse level of 7^3, no start of its own, so
   // the perturbed and the plain start share the coarse equilibrium and differ by the offsets only.
   SettleOptions options;
@@ -955,7 +957,7 @@ TEST_CASE("the coarse start's perturbation is fixed and bounded and moves only f
     }
     if (model == SpringModel::model6) {
       CHECK(largest <= 0.5 * amplitude * (1.0 + 1e-9));
-      CHECK(largest > 0.45 * amplitude);                        // 3000 uniform draws reach the edge
+      CHECK(largest > 0.45 * amplitude);                           // 3000 uniform draws reach the edge
       CHECK(std::abs(sum / free_coordinates) < 0.02 * amplitude);  // centred (about 0.005 expected)
       // The solve from the perturbed start comes to rest.
       SpringSystem settled = lattice.system;

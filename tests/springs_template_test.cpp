@@ -159,7 +159,8 @@ TEST_CASE("narrow edge cells put the inner lines at the centres of their shares"
     }
   // The edge springs are half as long (stiffness 1 / rest length), the others unchanged.
   double shortest = 1e300, longest = 0.0;
-  for (const Spring& spring : narrow.system.springs) shortest = std::min(shortest, spring.rest), longest = std::max(longest, spring.rest);
+  for (const Spring& spring : narrow.system.springs)
+    shortest = std::min(shortest, spring.rest), longest = std::max(longest, spring.rest);
   CHECK(shortest == Approx(0.05));
   CHECK(longest == Approx(0.25));  // along t: 4 steps of the unit length
   // Even edge cells: the coordinates i / (n - 1) to the bit.

@@ -116,10 +116,10 @@ inline std::string unique_mark() {
 
 }  // namespace fascicle::test
 
-#define FASCICLE_REQUIRE_DATA()                                                       \
-  do {                                                                                \
-    if (fascicle::test::data_dir().empty()) {                                         \
-      WARN("skipped: corpus folder " FASCICLE_DATA_DIR " is absent");                 \
-      return;                                                                         \
-    }                                                                                 \
+#define FASCICLE_REQUIRE_DATA()                                       \
+  do {                                                                \
+    if (fascicle::test::data_dir().empty()) {                         \
+      WARN("skipped: corpus folder " FASCICLE_DATA_DIR " is absent"); \
+      return;                                                         \
+    }                                                                 \
   } while (0)

@@ -204,7 +204,8 @@ class ParseCursor {
     const std::string_view t = in_line ? token_in_line() : token_any();
     if (t.empty()) missing(what, in_line, line_before);
     double value = 0.0;
-    if (!parse_double(t, value)) fail(ErrorCode::bad_number, std::string(what) + " '" + shorten(t) + "' is not a number");
+    if (!parse_double(t, value))
+      fail(ErrorCode::bad_number, std::string(what) + " '" + shorten(t) + "' is not a number");
     if (!std::isfinite(value)) fail(ErrorCode::bad_number, std::string(what) + " is " + shorten(t) + " (not finite)");
     return value;
   }
@@ -215,7 +216,8 @@ class ParseCursor {
     const std::string_view t = in_line ? token_in_line() : token_any();
     if (t.empty()) missing(what, in_line, line_before);
     std::int64_t value = 0;
-    if (!parse_integer(t, value)) fail(ErrorCode::malformed, std::string(what) + " '" + shorten(t) + "' is not an integer");
+    if (!parse_integer(t, value))
+      fail(ErrorCode::malformed, std::string(what) + " '" + shorten(t) + "' is not an integer");
     return value;
   }
 
@@ -238,8 +240,7 @@ class ParseCursor {
   /// Expects `keyword` (case-sensitive) as the next token in the line.
   void expect_in_line(std::string_view keyword) {
     const std::string_view t = token_in_line();
-    if (t != keyword)
-      fail(ErrorCode::malformed, "expected '" + std::string(keyword) + "', found '" + shorten(t) + "'");
+    if (t != keyword) fail(ErrorCode::malformed, "expected '" + std::string(keyword) + "', found '" + shorten(t) + "'");
   }
 
   // ---- binary ------------------------------------------------------------------------------
@@ -387,8 +388,7 @@ class ParseCursor {
   }
 
   [[noreturn]] void missing(const char* what, bool in_line, std::size_t line_before) const {
-    if (at_end())
-      fail(ErrorCode::truncated, std::string("file ends where ") + what + " was expected");
+    if (at_end()) fail(ErrorCode::truncated, std::string("file ends where ") + what + " was expected");
     if (in_line) fail_at_line(line_before, ErrorCode::malformed, std::string(what) + " missing at the end of the line");
     fail(ErrorCode::malformed, std::string(what) + " missing");
   }

@@ -26,6 +26,6 @@ std::string find_wrap_worker(const std::string& explicit_path);
 /// `memory_mb` > 0 limits the worker's address space. Throws TopologyError(repair_failed),
 /// saying whether the worker exited or was killed by a signal, when it ends without a result.
 std::optional<TriangleMesh> alpha_wrap_with_time_limit(const TriangleMesh& soup, double alpha, double offset,
-                                                        double seconds, const std::string& worker, long memory_mb);
+                                                       double seconds, const std::string& worker, long memory_mb);
 
 }  // namespace fascicle::detail

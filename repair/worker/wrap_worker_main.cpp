@@ -121,7 +121,5 @@ int main(int argc, char** argv) {
 #endif
   try {
     return serve();
-  } catch (const std::bad_alloc&) {
-    return kWorkerOutOfMemory;
-  }
+  } catch (const std::bad_alloc&) { return kWorkerOutOfMemory; }
 }
