@@ -6,6 +6,24 @@
 
 namespace fascicle {
 
+namespace {
+
+// One ASCII Float64 DataArray of 3-vectors, a vector a line.
+void append_vectors(std::string& out, const std::string& name, const std::vector<Vec3>& vectors) {
+  out += "        <DataArray type=\"Float64\" Name=\"" + name + "\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const Vec3& v : vectors) {
+    out += "          ";
+    for (int k = 0; k < 3; ++k) {
+      if (k) out += ' ';
+      detail::append_double(out, v[k]);
+    }
+    out += '\n';
+  }
+  out += "        </DataArray>\n";
+}
+
+}  // namespace
+
 void write_tetrahedra(const std::string& path, const TetMesh& mesh, const std::string& name,
                       const std::vector<Vec3>& cell_vectors) {
   if (lower_extension(path) != "vtu")
@@ -23,18 +41,9 @@ void write_tetrahedra(const std::string& path, const TetMesh& mesh, const std::s
   out += "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
   out += "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" + std::to_string(mesh.positions.size()) +
          "\" NumberOfCells=\"" + std::to_string(mesh.tets.size()) + "\">\n";
-  out +=
-      "      <Points>\n        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" "
-      "format=\"ascii\">\n";
-  for (const Vec3& p : mesh.positions) {
-    out += "          ";
-    for (int k = 0; k < 3; ++k) {
-      if (k) out += ' ';
-      detail::append_double(out, p[k]);
-    }
-    out += '\n';
-  }
-  out += "        </DataArray>\n      </Points>\n      <Cells>\n";
+  out += "      <Points>\n";
+  append_vectors(out, "Points", mesh.positions);
+  out += "      </Points>\n      <Cells>\n";
   out += "        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
   for (const Tetrahedron& t : mesh.tets) {
     out += "         ";
@@ -54,17 +63,9 @@ void write_tetrahedra(const std::string& path, const TetMesh& mesh, const std::s
   for (std::size_t c = 0; c < mesh.tets.size(); ++c) out += "          10\n";
   out += "        </DataArray>\n      </Cells>\n";
   if (!cell_vectors.empty()) {
-    out += "      <CellData Vectors=\"" + name + "\">\n        <DataArray type=\"Float64\" Name=\"" + name +
-           "\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-    for (const Vec3& v : cell_vectors) {
-      out += "          ";
-      for (int k = 0; k < 3; ++k) {
-        if (k) out += ' ';
-        detail::append_double(out, v[k]);
-      }
-      out += '\n';
-    }
-    out += "        </DataArray>\n      </CellData>\n";
+    out += "      <CellData Vectors=\"" + name + "\">\n";
+    append_vectors(out, name, cell_vectors);
+    out += "      </CellData>\n";
   }
   out += "    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
   write_file_atomically(path, [&](std::ostream& o) { o.write(out.data(), static_cast<std::streamsize>(out.size())); });
