@@ -44,6 +44,18 @@ def num(x, fmt="%.3g"):
 
 lines = []
 emit = lines.append
+
+
+def section(title, name):
+    """Opens a stage's section; returns the records of docs/bench/NAME, or None (said so) when absent."""
+    emit("## " + title)
+    emit("")
+    data = load(name)
+    if data is None:
+        emit("Not measured (`docs/bench/%s` is missing)." % name)
+        emit("")
+    return data
+
 machine = load("machine.json") or {}
 where = "%s, %s cores, %s GiB%s" % (
     machine.get("cpu", "?"), machine.get("cores", "?"), machine.get("memory_gib", "?"),
@@ -83,8 +95,10 @@ if quality:
     emit("")
 tests = load("tests.json")
 if tests:
-    emit("Test tiers, wall time after the build (`ctest -j%s -L unit`, what `make test` runs; "
-         "`ctest -j%s -L corpus`, what `make test-corpus` runs):" % (machine.get("cores", 2), machine.get("cores", 2)))
+    runs = {"unit": "make test", "corpus": "make test-corpus"}
+    emit("Test tiers, wall time after the build (%s):" % "; ".join(
+        "`ctest -j%s -L %s`, what `%s` runs" % (machine.get("cores", 2), label, runs[label])
+        for label in ("unit", "corpus") if label in tests))
     emit("")
     emit("| tier | tests | failed | skipped | wall |")
     emit("|---|---|---|---|---|")
@@ -96,12 +110,8 @@ if tests:
     emit("")
 
 # ---------------------------------------------------------------- repair
-emit("## Repair")
-emit("")
-repair = load("repair.json")
-if repair is None:
-    emit("Not measured (`docs/bench/repair.json` is missing).")
-else:
+repair = section("Repair", "repair.json")
+if repair is not None:
     emit("`fascicle bench repair --data ../shared/data --json docs/bench/repair.json`: every mesh under "
          "`muscles/` and `broken/` repaired by its own `fascicle -q --time-limit 120 repair IN -o OUT --report R` "
          "process, as a user runs it. Wall s: the repair itself (reading and writing excluded); CPU s: the "
@@ -139,12 +149,8 @@ else:
     emit("")
 
 # ---------------------------------------------------------------- sphere map
-emit("## Sphere map")
-emit("")
-sphere = load("sphere.json")
-if sphere is None:
-    emit("Not measured (`docs/bench/sphere.json` is missing).")
-else:
+sphere = section("Sphere map", "sphere.json")
+if sphere is not None:
     emit("`fascicle bench sphere --data ../shared/data --json docs/bench/sphere.json`: speed of the map "
          "and of point location (median of the runs), then every corpus muscle after repair mapped by the "
          "default method beside the thesis's relaxation (`--sphere-method relax`, at most 3000 iterations a "
@@ -184,12 +190,8 @@ else:
         emit("")
 
 # ---------------------------------------------------------------- springs
-emit("## Springs (CPU)")
-emit("")
-springs = by_section(load("springs.json"))
-if not springs:
-    emit("Not measured (`docs/bench/springs.json` is missing).")
-else:
+springs = by_section(section("Springs (CPU)", "springs.json"))
+if springs:
     emit("`fascicle bench springs --sections bandwidth,speed,rest,trade --sizes 10,20,50,100 --general-max-size 50 "
          "--rest-sizes 5,10 --trade-sizes 20,50 --trade-models 6,26 --trade-solvers "
          "verlet-estimate,static-momentum,static-multigrid --trade-limit 60 --json docs/bench/springs.json`.")
@@ -313,12 +315,8 @@ if h200:
                 "fascicle bench gpu --gl-device 0 --json docs/bench/gpu-h200.json")
 
 # ---------------------------------------------------------------- decompose
-emit("## Decompose")
-emit("")
-dec = load("decompose.json")
-if dec is None:
-    emit("Not measured (`docs/bench/decompose.json` is missing).")
-else:
+dec = section("Decompose", "decompose.json")
+if dec is not None:
     emit("`fascicle bench decompose --data ../shared/data --repeat 5 --skip-templates --json "
          "docs/bench/decompose.json`: one muscle timed stage by stage (median of the repeats), then every "
          "corpus muscle with default options, one after another in one process. Judged as decompose judges: "

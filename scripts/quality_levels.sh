@@ -32,18 +32,17 @@ for level in "${levels[@]}"; do
   python3 - "$dir" "$level" "$seconds" <<'PY'
 import glob, json, statistics, sys
 folder, level, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
-checks = []
-for path in sorted(glob.glob(folder + "/**/*.vtk.check.json", recursive=True)):
-    try:
-        checks.append(json.load(open(path)))
-    except ValueError:
-        pass
-reports = []
-for path in sorted(glob.glob(folder + "/**/*.report.json", recursive=True)):
-    try:
-        reports.append(json.load(open(path)))
-    except ValueError:
-        pass
+def load_all(pattern):
+    """Every JSON file under the folder matching pattern; a half-written one is left out."""
+    out = []
+    for path in sorted(glob.glob(folder + "/**/" + pattern, recursive=True)):
+        try:
+            out.append(json.load(open(path)))
+        except ValueError:
+            pass
+    return out
+checks = load_all("*.vtk.check.json")
+reports = load_all("*.report.json")
 muscles = len(reports)
 decompose_ok = sum(1 for r in reports if r.get("status") == "ok")
 passed = sum(1 for c in checks if c["pass"])
