@@ -41,14 +41,14 @@ struct SpringsBenchArgs {
   std::string trade_solvers;  // empty: all
   std::string trade_models = "6,26";
   std::string json;
-  std::string plots;               // folder for the template pictures (section "templates")
-  double min_seconds = 0.5;        // per speed measurement
-  double trade_limit = 60.0;       // seconds per trade run
-  int general_max_size = 100;      // largest lattice the general path is timed on (memory)
-  double rest_tolerance = 1e-4;    // "at rest" for tables 7.4-7.6
-  double rest_dt = 0.01;           // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
-  int local_global_max_size = 20;  // the sparse Cholesky factor grows too fast above this
-  bool plain_kernel = false;       // structured path without the AVX-512 spring loop
+  std::string plots;                 // folder for the template pictures (section "templates")
+  double min_seconds = 0.5;          // per speed measurement
+  double trade_limit = 60.0;         // seconds per trade run
+  int general_max_size = 100;        // largest lattice the general path is timed on (memory)
+  double rest_tolerance = 1e-4;      // "at rest" for tables 7.4-7.6
+  double rest_dt = 0.01;             // fixed time step for tables 7.4-7.6 (the thesis's is not stated)
+  int local_global_max_size = 20;    // the sparse Cholesky factor grows too fast above this
+  std::string spring_loop = "auto";  // structured path's spring loop: auto, avx512, avx2 or plain
   double coarse_start_tolerance = SettleOptions{}.coarse_start_tolerance;  // static momentum's coarse start
   double coarse_start_perturbation = SettleOptions{}.coarse_start_perturbation;
 };
@@ -191,14 +191,12 @@ void run_speed(const SpringsBenchArgs& args, double triad, nlohmann::json& recor
       "    load average before: %s)\n",
       springs::detail::structured_simd_name(), load_average().c_str());
   double in_cache_rate[2] = {0.0, 0.0};  // model-6, model-26: springs per second, all threads
-  if (springs::detail::structured_simd_active() || args.plain_kernel) {
-    in_cache_rate[0] = springs_per_second_in_cache(SpringModel::model6, args.min_seconds);
-    in_cache_rate[1] = springs_per_second_in_cache(SpringModel::model26, args.min_seconds);
-    std::printf(
-        "   compute limit (structured kernel, each of %d threads on its own 16^3 lattice in cache): "
-        "model-6 %.0f, model-26 %.0f million springs/s\n",
-        std::max(1, tbb::this_task_arena::max_concurrency()), in_cache_rate[0] / 1e6, in_cache_rate[1] / 1e6);
-  }
+  in_cache_rate[0] = springs_per_second_in_cache(SpringModel::model6, args.min_seconds);
+  in_cache_rate[1] = springs_per_second_in_cache(SpringModel::model26, args.min_seconds);
+  std::printf(
+      "   compute limit (structured kernel, each of %d threads on its own 16^3 lattice in cache): "
+      "model-6 %.0f, model-26 %.0f million springs/s\n",
+      std::max(1, tbb::this_task_arena::max_concurrency()), in_cache_rate[0] / 1e6, in_cache_rate[1] / 1e6);
   std::printf("%6s %6s %-19s %10s %10s %10s %12s %8s %11s %8s\n", "n", "model", "backend", "ms/iter", "cpu ms",
               "MB/iter", "stream ms", "ratio", "compute ms", "ratio");
   for (int n : parse_list(args.sizes, "sizes")) {
@@ -474,7 +472,13 @@ void run_trade(const SpringsBenchArgs& args, nlohmann::json& records) {
 }
 
 void run_springs_bench(const SpringsBenchArgs& args) {
-  springs::detail::set_structured_simd(!args.plain_kernel);
+  const std::string& loop = args.spring_loop;
+  if (loop != "auto" && loop != "avx512" && loop != "avx2" && loop != "plain")
+    throw OptionError("spring-loop: one of auto, avx512, avx2, plain, got " + loop);
+  springs::detail::set_structured_simd(loop != "plain");
+  springs::detail::set_structured_avx512(loop == "auto" || loop == "avx512");
+  if (loop != "auto" && loop != springs::detail::structured_simd_name())
+    throw OptionError("spring-loop: this processor cannot run the " + loop + " loop");
   nlohmann::json records = nlohmann::json::array();
   if (has_section(args, "templates")) {
     if (args.plots.empty()) throw OptionError("plots: section templates needs --plots FOLDER");
@@ -531,9 +535,9 @@ void add_springs_bench(CLI::App& bench) {
                   "Share of the mean rest length by which static-momentum's coarse start offsets its free points "
                   "(model-6 lattices only; 0: none)")
       ->capture_default_str();
-  cmd->add_flag(
-      "--plain-kernel", args->plain_kernel,
-      "Structured path: the plain C++ spring loop instead of the vector one, AVX-512 or AVX2 (for comparison)");
+  cmd->add_option("--spring-loop", args->spring_loop,
+                  "Structured path's spring loop: auto (the fastest the processor has), avx512, avx2 or plain")
+      ->capture_default_str();
   cmd->add_option("--json", args->json, "Write the records as JSON here");
   cmd->add_option("--plots", args->plots, "Folder for the template pictures (section templates)");
   cmd->callback([args] { run_springs_bench(*args); });

@@ -1,9 +1,10 @@
 #pragma once
 /// \file fused_row.h
 /// Private to the structured Verlet path (springs/verlet_structured.cpp): one row of the lattice as
-/// the vector spring loops see it (FusedRow), and those loops. Two instruction sets, one loop
-/// each: AVX-512 (8 points a vector, in verlet_structured.cpp) and AVX2 with FMA (4 points a
-/// vector, springs/verlet_rows_avx2.cpp), picked at run time by what the processor has.
+/// the vector spring loop sees it (FusedRow), and that loop. One source (springs/fused_rows_kernel.h)
+/// compiled for two instruction sets: AVX-512, 8 points a vector (springs/fused_rows_avx512.cpp),
+/// and AVX2 with FMA, 4 points a vector (springs/fused_rows_avx2.cpp), picked at run time by what
+/// the processor has.
 
 #include <cstdint>
 
@@ -16,7 +17,7 @@ constexpr int kFirstPushGroup = 3;
 // Model-6: the direction (0, 0, 1) (half_offsets order, checked at construction).
 constexpr int kModel6FirstPush = 2;
 
-// One row on a vector path (AVX-512: 8 points a vector, fused_rows_avx512; AVX2: 4, fused_rows_avx2). A point's own springs are summed in registers
+// One row on a vector path. A point's own springs are summed in registers
 // (+f for each direction in order); springs to other rows are pushed into the ring (-f at the
 // target); the springs along x (same row, i -> i + 1) are pushed within registers by shifting
 // f one lane up and carrying the last lane into the next vector. The force of a point is then
@@ -48,12 +49,14 @@ struct FusedRow {
   bool power;  // sum f . v (the momentum solver's restart test); else the power is left 0
 };
 
-/// `rows` rows of one plane from `r` (every pointer of the next row one stride on), AVX2 and
-/// FMA; row t's largest squared force (bits, see verlet_structured.cpp) and power go to
-/// largest_out[t] and power_out[t]. Call only where the processor has AVX2 and FMA.
+/// `rows` rows of one plane from `r` (every pointer of the next row one stride on); row t's
+/// largest squared force (bits, see verlet_structured.cpp) and power go to largest_out[t] and
+/// power_out[t]. Call only where the processor has the instruction set (the *_supported below).
+void fused_rows_avx512(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out);
 void fused_rows_avx2(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out);
 
-/// Whether the processor runs fused_rows_avx2 (AVX2 and FMA).
+/// Whether the processor runs fused_rows_avx512 (AVX-512F), fused_rows_avx2 (AVX2 and FMA).
+bool avx512_rows_supported();
 bool avx2_rows_supported();
 
 }  // namespace fascicle::springs::detail

@@ -31,10 +31,10 @@
 // alike (all but the strip's first and last) run as one call, their set-up made once.
 //
 // This path needs a vector loop written with intrinsics: a row is one loop (own springs summed
-// in registers, integration in the same pass). With AVX-512 (fused_rows_avx512_t) it takes
-// 1 / sqrt from VRSQRT14PD refined by one third-order step (relative error below about 6e-13);
-// with AVX2 and FMA, the same loop 4 points a vector (springs/verlet_rows_avx2.cpp: VRSQRTPS,
-// fourth-order step). Elsewhere (or after set_structured_simd(false)) the portable gather path
+// in registers, integration in the same pass), written once (springs/fused_rows_kernel.h) and
+// compiled for AVX-512, 8 points a vector (springs/fused_rows_avx512.cpp: 1 / sqrt from VRSQRT14PD
+// and a third-order step, relative error below about 6e-13), and for AVX2 with FMA, 4 points a
+// vector (springs/fused_rows_avx2.cpp: VRSQRTPS and a fourth-order step). Elsewhere (or after set_structured_simd(false)) the portable gather path
 // runs: every spring evaluated from both ends with a square root and a division, vectorised by
 // the compiler (sweep_gather). All are deterministic; they differ from each other by rounding. When
 // every direction's springs share one stiffness and every point the same coefficients, the rows
@@ -49,11 +49,6 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
-
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#define FASCICLE_HAVE_AVX512_KERNEL 1
-#endif
 
 #include <algorithm>
 #include <array>
@@ -87,13 +82,9 @@ void set_structured_avx512(bool enabled) { g_avx512_enabled = enabled; }
 namespace {
 // The vector loop a structured solver built now would take: 2 AVX-512, 1 AVX2, 0 none.
 int simd_level() {
-#ifdef FASCICLE_HAVE_AVX512_KERNEL
   if (!g_simd_enabled) return 0;
-  if (g_avx512_enabled && __builtin_cpu_supports("avx512f")) return 2;
+  if (g_avx512_enabled && avx512_rows_supported()) return 2;
   return avx2_rows_supported() ? 1 : 0;
-#else
-  return 0;
-#endif
 }
 }  // namespace
 
@@ -237,344 +228,6 @@ FASCICLE_ROW(step26_kab, true, true, true, 13)
 const RowFunction kRows[2][2][2][2] = {
     {{{force6, force26}, {force6, force26}}, {{force6_k, force26_k}, {force6_k, force26_k}}},
     {{{step6, step26}, {step6_ab, step26_ab}}, {{step6_k, step26_k}, {step6_kab, step26_kab}}}};
-
-#ifdef FASCICLE_HAVE_AVX512_KERNEL
-// GCC 12's intrinsic headers pass an uninitialised vector through (the unmasked forms) and then
-// warn about it: a false positive.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-// Loads and stores of 8 doubles under a mask; a full mask takes the plain instruction (masked
-// ones are slower on some processors, measured on this one).
-__attribute__((target("avx512f"), always_inline)) inline __m512d load8(__mmask8 m, const double* p) {
-  return m == 0xFF ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, p);
-}
-__attribute__((target("avx512f"), always_inline)) inline void store8(__mmask8 m, double* p, __m512d v) {
-  if (m == 0xFF)
-    _mm512_storeu_pd(p, v);
-  else
-    _mm512_mask_storeu_pd(p, m, v);
-}
-
-// The springs from the 8 points s (lanes) to the points at index q of the position arrays x,
-// the one spring evaluation of both models: sets l = x[q] - s and returns w = k - 1 / |l| (the
-// force is w l). Lanes outside m (when Masked) get l = 0 and w = 0: no force.
-// 1 / |l| is y0 = VRSQRT14PD(l2) (relative error e0 below 2^-14) refined by one third-order
-// step y = y0 (1 + e/2 + 3 e^2 / 8), e = 1 - l2 y0^2 (Householder's method for x^-1/2):
-// relative error below 5/16 e0^3, about 6e-13, plus rounding. It is folded into w as
-// k - y0 (1 + e (1/2 + 3/8 e)): after e, three FMA-class operations where
-// (k - y0) - (y0 e)(1/2 + 3/8 e) takes a multiplication, two FMAs and a subtraction (measured
-// by `fascicle bench springs`, docs/BENCHMARKS.md).
-// Lanes with l2 = 0 give NaN (as 1 / sqrt(0) * 0 does on the plain path). Explicit FMAs; the
-// library is compiled with -ffp-contract=off, so the same source gives the same bits everywhere.
-template <bool Masked>
-__attribute__((target("avx512f"), always_inline)) inline __m512d spring_weight(__mmask8 m, const double* const x[3],
-                                                                               long q, const __m512d s[3], __m512d k,
-                                                                               __m512d l[3]) {
-  for (int c = 0; c < 3; ++c)
-    l[c] = Masked ? _mm512_maskz_sub_pd(m, load8(m, x[c] + q), s[c]) : _mm512_sub_pd(_mm512_loadu_pd(x[c] + q), s[c]);
-  const __m512d l2 = _mm512_fmadd_pd(l[2], l[2], _mm512_fmadd_pd(l[1], l[1], _mm512_mul_pd(l[0], l[0])));
-  // (maskz form: GCC 12 warns about the undefined pass-through of the plain form)
-  const __m512d y0 = _mm512_maskz_rsqrt14_pd(static_cast<__mmask8>(0xFF), l2);
-  const __m512d e = _mm512_fnmadd_pd(l2, _mm512_mul_pd(y0, y0), _mm512_set1_pd(1.0));
-  const __m512d g = _mm512_fmadd_pd(e, _mm512_set1_pd(0.375), _mm512_set1_pd(0.5));
-  const __m512d u = _mm512_fmadd_pd(e, g, _mm512_set1_pd(1.0));
-  return Masked ? _mm512_maskz_fnmadd_pd(m, y0, u, k) : _mm512_fnmadd_pd(y0, u, k);  // 0 without a spring
-}
-
-// `rows` consecutive rows of one plane (r the first) whose springs, targets and pushes are alike
-// (the same directions valid and pushed): every pointer of the next row is one stride on, so
-// the set-up (the FusedRow, the groups' offsets and stiffness) is made once for the run. Row t's
-// largest squared force (bits) and power go to largest_out[t] and power_out[t].
-template <int Directions>
-__attribute__((target("avx512f"))) void fused_rows_avx512_t(const FusedRow& given, long rows,
-                                                            std::uint64_t* largest_out, double* power_out) {
-  // A local copy: vector stores may alias anything, so fields read through a reference would be
-  // reloaded after every store.
-  FusedRow r = given;
-  const long nx = r.nx;
-  const double* x[3] = {r.x[0], r.x[1], r.x[2]};
-  __m512d carry[3], minus_carry[3], group_carry[4][3];
-  __m512i largest;
-  __m512d fv;
-  // Model-26 rows with every spring and every push (all but the rows at the lattice's faces
-  // and around the tile) run their vectors but the last (i + 8 < nx: every lane's springs
-  // exist, see below) through a copy of the loop body without masks or per-direction tests.
-  // The operations are the same (a full mask), so are the bits: which copy runs depends on
-  // the tile, the result must not.
-  bool full = Directions == kMaxDirections && r.integrate && r.along_x >= 0;
-  bool arrays = false;  // per-point stiffness
-  long group_offset[4][3] = {};
-  const double* group_k[4][3] = {};
-  double group_ku[4][3] = {};
-  if (Directions == kMaxDirections) {
-    for (int g = 0; g < 4; ++g) {
-      full = full && r.group_push[g][0];
-      for (int s = 0; s < 3; ++s) {
-        const int d = r.group[g][s];
-        full = full && r.valid[d];
-        arrays = arrays || r.k[d];
-        group_offset[g][s] = r.offset[d];
-        group_k[g][s] = r.k[d];
-        group_ku[g][s] = r.ku[d];
-      }
-    }
-    if (r.along_x >= 0) arrays = arrays || r.k[r.along_x];
-  }
-  // Software prefetch, one line per array and vector: the positions two rows on from the
-  // farthest target row (the next rows' targets in the next plane, read here from memory for
-  // the first time in the iteration) and the next row's previous positions. The hardware
-  // prefetcher alone left the 100^3 model-26 row waiting for memory (about a fifth of its
-  // time, measured on one thread with and without).
-  long ahead = 0;
-  for (int d = 0; d < r.directions; ++d) ahead = std::max(ahead, r.offset[d]);
-  ahead += 2 * r.stride;
-  const long along_offset = r.along_x >= 0 ? r.offset[r.along_x] : 0;
-  const double* along_k = r.along_x >= 0 ? r.k[r.along_x] : nullptr;
-  const double along_ku = r.along_x >= 0 ? r.ku[r.along_x] : 0.0;
-  // One vector of 8 points from i. Kind: 0 the checked body, 1 a vector of a full row (see
-  // above) with uniform stiffness, 2 the same with per-point stiffness.
-  auto vector = [&](long i, auto kind) __attribute__((target("avx512f"), always_inline)) {
-    constexpr int Kind = decltype(kind)::value;
-    const long left = nx - i;
-    const __mmask8 row_mask = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
-    const __m512d s[3] = {load8(row_mask, x[0] + i), load8(row_mask, x[1] + i), load8(row_mask, x[2] + i)};
-    for (int c = 0; c < 3; ++c) {
-      _mm_prefetch(reinterpret_cast<const char*>(x[c] + i + ahead), _MM_HINT_T0);
-      _mm_prefetch(reinterpret_cast<const char*>(r.p[c] + i + r.stride), _MM_HINT_T0);
-    }
-    __m512d own[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
-    __m512d along[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
-    // Model-26: the springs of direction d evaluated from the source points at i + shift
-    // (0 or 1; see below) in the lanes where `valid` and their target exists. Sets l, returns w.
-    auto spring = [&](int d, bool valid, long shift, const __m512d from[3], __m512d l[3])
-        __attribute__((target("avx512f"), always_inline)) {
-      if constexpr (Kind == 0) {
-        // Lanes whose source (i + shift + lane) and target (one more for dx = +1, one less for
-        // dx = -1) exist.
-        const long source_left = left - shift;
-        __mmask8 m = source_left >= 8 ? static_cast<__mmask8>(0xFF)
-                                      : static_cast<__mmask8>(source_left > 0 ? (1u << source_left) - 1u : 0u);
-        if (r.dx[d] > 0 && source_left <= 8) m &= static_cast<__mmask8>(m >> 1);
-        if (r.dx[d] < 0 && i + shift == 0) m &= static_cast<__mmask8>(0xFE);
-        if (!valid) m = 0;
-        const __m512d k = r.k[d] ? load8(m, r.k[d] + i + shift) : _mm512_set1_pd(r.ku[d]);
-        return spring_weight<true>(m, x, i + shift + r.offset[d], from, k, l);
-      } else {
-        (void)valid;
-        const int g = d >> 2, slot = d & 3;  // d: 4 g + slot, 15 the along-x direction
-        const long offset = d == 15 ? along_offset : group_offset[g][slot];
-        const double* ka = d == 15 ? along_k : group_k[g][slot];
-        const double ku = d == 15 ? along_ku : group_ku[g][slot];
-        const __m512d k = Kind == 2 ? _mm512_loadu_pd(ka + i + shift) : _mm512_set1_pd(ku);
-        return spring_weight<false>(0xFF, x, i + shift + offset, from, k, l);
-      }
-    };
-    if constexpr (Directions == kMaxDirections) {
-      // Model-26. The three directions of a group push into one target row: its springs are
-      // summed in registers and the sum pushed with one aligned read-modify-write of the target
-      // per vector (pushing them one by one made overlapping unaligned stores and loads of the
-      // same lines, which the processor cannot forward). dx = 0: source and target in the same
-      // lane. dx = +1: the force shifted one lane up to its target, the last lane carried into
-      // the next vector. dx = -1: evaluated from the sources one point on (i + 1), so in the
-      // lane of its target; its force on the source is what is shifted up, summed over the four
-      // groups first (`minus`). (A row around the tile, not integrated, needs no along-x
-      // springs, which push nowhere, nor the groups whose target row is outside the tile.)
-      // Kind 0 numbers the directions by r.group, the other kinds by 4 g + slot.
-      const __mmask8 next_mask =
-          Kind == 0 && left <= 8 ? static_cast<__mmask8>(row_mask >> 1) : static_cast<__mmask8>(0xFF);
-      __m512d next[3];  // the sources of the dx = -1 springs
-      for (int c = 0; c < 3; ++c) next[c] = Kind == 0 ? load8(next_mask, x[c] + i + 1) : _mm512_loadu_pd(x[c] + i + 1);
-      __m512d own_up[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};  // dx = +1
-      __m512d minus[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};   // dx = -1
-      if (Kind != 0 || r.along_x >= 0) {
-        __m512d l[3];
-        const __m512d w = spring(Kind == 0 ? r.along_x : 15, true, 0, s, l);
-        for (int c = 0; c < 3; ++c) {
-          along[c] = _mm512_mul_pd(w, l[c]);
-          own[c] = _mm512_add_pd(own[c], along[c]);
-        }
-      }
-#pragma GCC unroll 4
-      for (int g = 0; g < 4; ++g) {
-        if (Kind == 0 && !r.integrate && !r.group_push[g][0]) continue;
-        const int dm = Kind == 0 ? r.group[g][0] : 4 * g;
-        const int d0 = Kind == 0 ? r.group[g][1] : 4 * g + 1;
-        const int dp = Kind == 0 ? r.group[g][2] : 4 * g + 2;
-        __m512d lm[3], l0[3], lp[3];
-        const __m512d wm = spring(dm, Kind != 0 || r.valid[dm], 1, next, lm);
-        const __m512d w0 = spring(d0, Kind != 0 || r.valid[d0], 0, s, l0);
-        const __m512d wp = spring(dp, Kind != 0 || r.valid[dp], 0, s, lp);
-        const bool push = Kind != 0 || r.group_push[g][0];
-        // The dx = 0 force is never formed on its own: it goes into both sums by FMAs (one
-        // operation less than a product and two additions).
-        for (int c = 0; c < 3; ++c) {
-          const __m512d fp = _mm512_mul_pd(wp, lp[c]);
-          own[c] = _mm512_fmadd_pd(w0, l0[c], own[c]);
-          own_up[c] = _mm512_add_pd(own_up[c], fp);
-          minus[c] = _mm512_fmadd_pd(wm, lm[c], minus[c]);
-          if (!push) continue;
-          const __m512d up = _mm512_castsi512_pd(
-              _mm512_alignr_epi64(_mm512_castpd_si512(fp), _mm512_castpd_si512(group_carry[g][c]), 7));
-          group_carry[g][c] = fp;
-          const __m512d sum = _mm512_fmadd_pd(wm, lm[c], _mm512_fmadd_pd(w0, l0[c], up));
-          // The group (dy, dz) = (1, 1) makes the first push into its target row (see sweep):
-          // 0 - sum is stored without reading the row (the same bits as a zeroed row's).
-          double* target = r.group_push[g][c] + i;
-          const bool first = g == kFirstPushGroup;
-          if (Kind == 0)
-            store8(row_mask, target, _mm512_sub_pd(first ? _mm512_setzero_pd() : load8(row_mask, target), sum));
-          else
-            _mm512_storeu_pd(target, _mm512_sub_pd(first ? _mm512_setzero_pd() : _mm512_loadu_pd(target), sum));
-        }
-      }
-      // own = along and dx = 0 + dx = +1 + the forces on the next point (dx = -1 sources, minus
-      // the along-x spring at its target) shifted up, the previous vector's last lane coming in
-      // at lane 0: one shift and one carry for both.
-      for (int c = 0; c < 3; ++c) {
-        const __m512d back = _mm512_sub_pd(minus[c], along[c]);
-        const __m512d back_up =
-            _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(back), _mm512_castpd_si512(minus_carry[c]), 7));
-        minus_carry[c] = back;
-        own[c] = _mm512_add_pd(_mm512_add_pd(own[c], own_up[c]), back_up);
-      }
-    } else {
-#pragma GCC unroll 13
-      for (int d = 0; d < Directions; ++d) {
-        if (!r.valid[d]) continue;
-        // Lanes whose target exists: i + dx in [0, nx).
-        __mmask8 m = row_mask;
-        if (r.dx[d] > 0 && left <= 8) m &= static_cast<__mmask8>(row_mask >> 1);
-        if (r.dx[d] < 0 && i == 0) m &= static_cast<__mmask8>(0xFE);
-        const __m512d k = r.k[d] ? load8(m, r.k[d] + i) : _mm512_set1_pd(r.ku[d]);
-        __m512d l[3];
-        const __m512d w = spring_weight<true>(m, x, i + r.offset[d], s, k, l);
-        if (d == r.along_x) {
-          for (int c = 0; c < 3; ++c) {
-            along[c] = _mm512_mul_pd(w, l[c]);
-            own[c] = _mm512_add_pd(own[c], along[c]);
-          }
-        } else {
-          // f = w l fused into the sums: +f to the own point, -f to the target
-          for (int c = 0; c < 3; ++c) own[c] = _mm512_fmadd_pd(w, l[c], own[c]);
-          if (r.push[d][0]) {
-            for (int c = 0; c < 3; ++c) {
-              // The direction (0, 0, 1) makes the only push from plane k into row (j, k + 1), the
-              // first (see sweep): stored without reading the row (the same bits as a zeroed row's).
-              double* target = r.push[d][c] + i + r.dx[d];
-              const __m512d before = d == kModel6FirstPush ? _mm512_setzero_pd() : load8(m, target);
-              store8(m, target, _mm512_fnmadd_pd(w, l[c], before));
-            }
-          }
-        }
-      }
-    }
-    if (!r.integrate) return;
-    // f(i) = pushes + own - along(i - 1): shift `along` one lane up, the previous vector's last
-    // lane coming in at lane 0 (model-26: already in own, above).
-    __m512d force[3];
-    for (int c = 0; c < 3; ++c) {
-      const __m512d pushed = load8(row_mask, r.ring[c] + i);
-      if constexpr (Directions == kMaxDirections) {
-        force[c] = _mm512_add_pd(pushed, own[c]);
-      } else {
-        const __m512d shifted =
-            _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(along[c]), _mm512_castpd_si512(carry[c]), 7));
-        carry[c] = along[c];
-        force[c] = _mm512_sub_pd(_mm512_add_pd(pushed, own[c]), shifted);
-      }
-    }
-    std::uint64_t packed = 0;  // the 8 fixed flags (fewer at the row's end)
-    std::memcpy(&packed, r.fixed + i, static_cast<std::size_t>(left >= 8 ? 8 : left));
-    const __m128i fixed_bytes = _mm_cvtsi64_si128(static_cast<long long>(packed));
-    const __mmask8 is_fixed = _mm512_test_epi64_mask(_mm512_cvtepu8_epi64(fixed_bytes), _mm512_set1_epi64(0xFF));
-    const __mmask8 is_free = static_cast<__mmask8>(row_mask & ~is_fixed);
-    const __m512d f2 =
-        _mm512_fmadd_pd(force[2], force[2], _mm512_fmadd_pd(force[1], force[1], _mm512_mul_pd(force[0], force[0])));
-    largest = _mm512_mask_max_epu64(largest, is_free, largest, _mm512_castpd_si512(f2));
-    __m512d v[3];
-    for (int c = 0; c < 3; ++c) v[c] = _mm512_sub_pd(s[c], load8(row_mask, r.p[c] + i));
-    if (r.power) {
-      const __m512d pv =
-          _mm512_fmadd_pd(force[2], v[2], _mm512_fmadd_pd(force[1], v[1], _mm512_mul_pd(force[0], v[0])));
-      fv = _mm512_mask_add_pd(fv, is_free, fv, pv);
-    }
-    if (!r.write) return;
-    const __m512d a = r.a ? load8(row_mask, r.a + i) : _mm512_set1_pd(r.au);
-    const __m512d b = r.b ? load8(row_mask, r.b + i) : _mm512_set1_pd(r.bu);
-    for (int c = 0; c < 3; ++c) {
-      // fixed points: x_new = x; free: x + b v + a f
-      const __m512d moved = _mm512_fmadd_pd(a, force[c], _mm512_fmadd_pd(b, v[c], s[c]));
-      store8(row_mask, r.p[c] + i, _mm512_mask_blend_pd(is_free, s[c], moved));
-    }
-  };
-  // The next row's pointers: one stride further on (null ones stay null).
-  const long stride = r.stride;
-  auto advance = [stride](auto*& pointer) {
-    if (pointer) pointer += stride;
-  };
-  for (long row = 0; row < rows; ++row) {
-    for (int c = 0; c < 3; ++c) {
-      carry[c] = minus_carry[c] = _mm512_setzero_pd();
-      for (int g = 0; g < 4; ++g) group_carry[g][c] = _mm512_setzero_pd();
-    }
-    largest = _mm512_setzero_si512();
-    fv = _mm512_setzero_pd();
-    for (long i = 0; i < nx; i += 8) {
-      if constexpr (Directions == kMaxDirections) {
-        if (full && i + 8 < nx) {
-          if (arrays)
-            vector(i, std::integral_constant<int, 2>());
-          else
-            vector(i, std::integral_constant<int, 1>());
-          continue;
-        }
-      }
-      vector(i, std::integral_constant<int, 0>());
-    }
-    if (r.integrate) {
-      alignas(64) double lanes[8];
-      _mm512_store_pd(lanes, fv);
-      double sum = 0.0;
-      for (double v : lanes) sum += v;
-      power_out[row] = sum;
-      alignas(64) std::uint64_t big[8];
-      _mm512_store_si512(reinterpret_cast<__m512i*>(big), largest);
-      std::uint64_t out = 0;
-      for (std::uint64_t v : big) out = v > out ? v : out;
-      largest_out[row] = out;
-    }
-    if (row + 1 == rows) break;
-    for (int c = 0; c < 3; ++c) {
-      x[c] += stride;
-      advance(r.p[c]);
-      advance(r.ring[c]);
-    }
-    if constexpr (Directions == kMaxDirections) {
-      for (int g = 0; g < 4; ++g)
-        for (int c = 0; c < 3; ++c) {
-          advance(r.group_push[g][c]);
-          advance(group_k[g][c]);
-        }
-      advance(along_k);
-    } else {
-      for (int d = 0; d < Directions; ++d)
-        for (int c = 0; c < 3; ++c) advance(r.push[d][c]);
-    }
-    for (int d = 0; d < Directions; ++d) advance(r.k[d]);  // (the checked body's stiffness)
-    advance(r.a);
-    advance(r.b);
-    advance(r.fixed);
-  }
-}
-
-void fused_rows_avx512(const FusedRow& r, long rows, std::uint64_t* largest_out, double* power_out) {
-  if (r.directions == 3)
-    fused_rows_avx512_t<3>(r, rows, largest_out, power_out);
-  else
-    fused_rows_avx512_t<kMaxDirections>(r, rows, largest_out, power_out);
-}
-#pragma GCC diagnostic pop
-#endif
 
 // Allocations on 64-byte boundaries (a cache line, one 512-bit vector): with rows of a multiple
 // of 8 points every vector load and store of the AVX-512 path then stays within one line.
@@ -848,7 +501,6 @@ class StructuredVerlet final : public SpringSolver {
         if (stiffness_[d][i] != 0.0) stiffness_[d][i] = k_uniform_[d];
   }
 
-#ifdef FASCICLE_HAVE_AVX512_KERNEL
   // The vector loops' row `r`: pushes into the rows the tile holds; `integrate` false for the rows
   // around the tile (only pushes; `forward_only`: only the directions into the next plane).
   FusedRow fused_row(Ring& ring, long r, const Tile& tile, bool integrate, bool forward_only, bool write) {
@@ -892,21 +544,16 @@ class StructuredVerlet final : public SpringSolver {
     f.power = momentum_;  // only the momentum solver reads power_
     return f;
   }
-#endif
 
-  // Rows r .. r + count - 1 of one plane on a vector path (AVX-512 or AVX2), alike in their springs and pushes
-  // (fused_rows_avx512_t). `integrate`: rows of the tile (own springs, then each row is complete
+  // Rows r .. r + count - 1 of one plane on a vector path (AVX-512 or AVX2), alike in their springs
+  // and pushes (springs/fused_rows_kernel.h). `integrate`: rows of the tile (own springs, then each row is complete
   // and integrated); else rows around it (pushes into the tile only).
   void process_rows(Ring& ring, long r, long count, const Tile& tile, bool integrate, bool forward_only, bool write) {
-#ifdef FASCICLE_HAVE_AVX512_KERNEL
     const FusedRow row = fused_row(ring, r, tile, integrate, forward_only, write);
     if (avx512_)
       fused_rows_avx512(row, count, row_largest_.data() + r, row_power_.data() + r);
     else
       fused_rows_avx2(row, count, row_largest_.data() + r, row_power_.data() + r);
-#else
-    (void)ring, (void)r, (void)count, (void)tile, (void)integrate, (void)forward_only, (void)write;
-#endif
   }
 
   Kernel kernel() {
