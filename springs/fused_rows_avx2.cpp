@@ -97,20 +97,7 @@ struct Avx2 {
   FASCICLE_OP V select(Free free, V if_free, V otherwise) {
     return _mm256_blendv_pd(otherwise, if_free, _mm256_castsi256_pd(free));
   }
-  FASCICLE_OP double sum_lanes(V v) {
-    alignas(32) double lanes[4];
-    _mm256_store_pd(lanes, v);
-    double sum = 0.0;
-    for (double value : lanes) sum += value;
-    return sum;
-  }
-  FASCICLE_OP std::uint64_t max_lanes(Bits v) {
-    alignas(32) std::uint64_t lanes[4];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), v);
-    std::uint64_t out = 0;
-    for (std::uint64_t value : lanes) out = value > out ? value : out;
-    return out;
-  }
+  FASCICLE_OP void storeu_bits(std::uint64_t* p, Bits v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
 };
 
 #undef FASCICLE_OP

@@ -91,20 +91,7 @@ struct Avx512 {
   }
   FASCICLE_OP V add_where(Free free, V sum, V v) { return _mm512_mask_add_pd(sum, free, sum, v); }
   FASCICLE_OP V select(Free free, V if_free, V otherwise) { return _mm512_mask_blend_pd(free, otherwise, if_free); }
-  FASCICLE_OP double sum_lanes(V v) {
-    alignas(64) double lanes[8];
-    _mm512_store_pd(lanes, v);
-    double sum = 0.0;
-    for (double value : lanes) sum += value;
-    return sum;
-  }
-  FASCICLE_OP std::uint64_t max_lanes(Bits v) {
-    alignas(64) std::uint64_t lanes[8];
-    _mm512_store_si512(reinterpret_cast<__m512i*>(lanes), v);
-    std::uint64_t out = 0;
-    for (std::uint64_t value : lanes) out = value > out ? value : out;
-    return out;
-  }
+  FASCICLE_OP void storeu_bits(std::uint64_t* p, Bits v) { _mm512_storeu_si512(p, v); }
 };
 
 #undef FASCICLE_OP

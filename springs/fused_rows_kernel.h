@@ -281,8 +281,16 @@ void fused_rows_t(const FusedRow& given, long rows, std::uint64_t* largest_out, 
       vector(i, std::integral_constant<int, 0>());
     }
     if (r.integrate) {
-      power_out[row] = Ops::sum_lanes(fv);
-      largest_out[row] = Ops::max_lanes(largest);
+      double lanes[L];  // the lanes summed and compared in lane order
+      Ops::storeu(lanes, fv);
+      double sum = 0.0;
+      for (double value : lanes) sum += value;
+      power_out[row] = sum;
+      std::uint64_t big[L];
+      Ops::storeu_bits(big, largest);
+      std::uint64_t out = 0;
+      for (std::uint64_t value : big) out = value > out ? value : out;
+      largest_out[row] = out;
     }
     if (row + 1 == rows) break;
     for (int c = 0; c < 3; ++c) {
