@@ -392,23 +392,21 @@ class ComputeVerlet final : public GpuSpringSolver {
   // last step moved against the force (sum F . v < 0, measured by that step's dispatch), the
   // velocity is dropped (previous positions := current ones, a copy on the GPU).
   void momentum_schedule() {
-    if (since_restart_ > 0 && power_sum_ < 0.0) {
+    if (schedule_.restart(power_sum_ < 0.0)) {
       glBindBuffer(GL_COPY_READ_BUFFER, x_[current_].id);
       glBindBuffer(GL_COPY_WRITE_BUFFER, x_[current_ ^ 1].id);
       glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, 0, 0,
                           static_cast<GLsizeiptr>(4 * n_ * sizeof(float)));
       glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-      since_restart_ = 0;
     }
-    const double b = static_cast<double>(since_restart_) / (since_restart_ + 3);
-    ++since_restart_;
+    const double b = schedule_.next();
     glUniform2f(u_ab_, static_cast<float>(coefficients_.a[0]), static_cast<float>(b));
     glUniform1i(u_power_, 1);
   }
 
   springs::detail::VerletCoefficients coefficients_;
   bool momentum_ = false;
-  int since_restart_ = 0;
+  springs::detail::MomentumSchedule schedule_;
   double power_sum_ = 0.0;
   Buffer power_;
   GLint u_power_ = -1, u_ab_ = -1;
@@ -738,15 +736,17 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
   // Divergence as on the CPU: every energy_interval iterations the total energy comes back
   // (a reduction on the GPU, a few kilobytes); NaN/Inf, or more than energy_growth_bound times
   // the initial energy, stops the solve with the CPU's SolverError.
-  auto diverged = [&](int iteration, double energy, double initial) {
+  // The coefficients only name the step in the error message; they are built when it is thrown.
+  const springs::detail::DivergenceWatch watch(system, options, solver->energy());
+  auto check_energy = [&](int iteration, double energy) {
+    if (!watch.diverged(energy)) return;
     const bool momentum = options.solver == springs::SolverKind::static_equilibrium;
-    springs::detail::throw_verlet_divergence(iteration, energy, initial,
-                                             momentum ? springs::detail::momentum_coefficients(system)
-                                                      : springs::detail::verlet_coefficients(system, options),
-                                             options);
+    watch.check(iteration, energy,
+                momentum ? springs::detail::momentum_coefficients(system)
+                         : springs::detail::verlet_coefficients(system, options),
+                options);
   };
-  const double initial_energy = std::max(solver->energy(), springs::detail::energy_floor(system));
-  if (!std::isfinite(initial_energy)) diverged(0, NAN, initial_energy);
+  check_energy(0, watch.initial_energy());
   const bool run_all = options.tolerance == 0.0;
   // The stall rule's motion floor: a share of the mean rest length, at least 64 float32
   // roundings of the half-extent (positions on the GPU are relative to the box centre).
@@ -776,11 +776,9 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       const int until = std::min({next_check, next_energy, options.max_iterations});
       solver->run(until - report.iterations);
       report.iterations = until;
-      if (report.iterations == next_energy) {
+      if (watch.due(report.iterations)) {
         next_energy += options.energy_interval;
-        const double e = solver->energy();
-        if (!std::isfinite(e) || e > options.energy_growth_bound * initial_energy)
-          diverged(report.iterations, e, initial_energy);
+        check_energy(report.iterations, solver->energy());
       }
       if (report.iterations != next_check && report.iterations < options.max_iterations) continue;
       next_check = report.iterations + gpu_options.check_interval;
@@ -810,7 +808,7 @@ GpuSettleReport settle_gpu(const GlContext& context, SpringSystem& system, const
       }
     }
   }
-  if (!std::isfinite(residual)) diverged(report.iterations, NAN, initial_energy);
+  if (!std::isfinite(residual)) check_energy(report.iterations, NAN);
   solver->finish();
   const auto t2 = clock_type::now();
   const Readback back = read_positions(*solver, gpu_options.pbo_readback);

@@ -95,13 +95,15 @@ class MultigridSolver final : public SpringSolver {
     previous_ = x_;
     y_ = x_;
     evaluate(y_);
-    initial_energy_ = std::max(energy_, energy_floor(system));
+    watch_ = DivergenceWatch(system, options, energy_);
     last_energy_ = energy_;
   }
 
   double step() override {
     if (n_ == 0) return 0.0;
-    const double beta = static_cast<double>(momentum_steps_) / (momentum_steps_ + 3.0);
+    // Gradient and function restart: the last step opposed the force or raised the energy.
+    if (schedule_.restart(last_step_bad_)) previous_ = x_;
+    const double beta = schedule_.next();
     if (iterations_ > 0) {  // the first y is x_0, already evaluated by the constructor
       for_blocks([&](int, int begin, int end) {
         for (std::size_t k = 3 * static_cast<std::size_t>(begin); k < 3 * static_cast<std::size_t>(end); ++k)
@@ -110,21 +112,19 @@ class MultigridSolver final : public SpringSolver {
       evaluate(y_);
     }
     ++iterations_;
-    if (!std::isfinite(energy_) || !std::isfinite(residual_) ||
-        energy_ > options_.energy_growth_bound * initial_energy_) {
+    if (watch_.diverged(energy_) || !std::isfinite(residual_)) {
       std::ostringstream out;
       out << "static multigrid diverged at iteration " << iterations_ << " (";
       if (std::isfinite(energy_))
         out << "energy " << energy_ << ", above " << options_.energy_growth_bound << " x the initial "
-            << initial_energy_;
+            << watch_.initial_energy();
       else
         out << "positions became NaN/Inf";
       out << "): use a smaller --multigrid-step (now " << options_.multigrid_step << ") or --static-method momentum";
       throw SolverError(out.str());
     }
     multigrid_->precondition(force_, step_);
-    // x_{k+1} = y + alpha B f(y); restart the momentum when the step opposes the force or the
-    // energy rose.
+    // x_{k+1} = y + alpha B f(y).
     const double alpha = options_.multigrid_step;
     const bool energy_rose = energy_ > last_energy_;
     for_blocks([&](int blk, int begin, int end) {
@@ -139,12 +139,7 @@ class MultigridSolver final : public SpringSolver {
     });
     const double along = sum_partials();
     last_energy_ = energy_;
-    if (along < 0.0 || energy_rose) {
-      momentum_steps_ = 0;
-      previous_ = x_;  // no momentum into the next step
-    } else {
-      ++momentum_steps_;
-    }
+    last_step_bad_ = along < 0.0 || energy_rose;
     return residual_;
   }
 
@@ -227,12 +222,15 @@ class MultigridSolver final : public SpringSolver {
   SettleOptions options_;
   std::vector<Vec3> input_;
   std::vector<char> fixed_;
-  int n_ = 0, blocks_ = 0, iterations_ = 0, momentum_steps_ = 0;
+  int n_ = 0, blocks_ = 0, iterations_ = 0;
   std::vector<int> row_, neighbour_;
   std::vector<double> stiffness_, rest_;
   std::vector<double> x_, previous_, y_, force_, step_, partial_, partial_max_;
   std::unique_ptr<LatticeMultigrid> multigrid_;
-  double scale_ = 1.0, energy_ = 0.0, residual_ = 0.0, initial_energy_ = 1.0, last_energy_ = 0.0;
+  double scale_ = 1.0, energy_ = 0.0, residual_ = 0.0, last_energy_ = 0.0;
+  bool last_step_bad_ = false;
+  MomentumSchedule schedule_;
+  DivergenceWatch watch_;
 };
 
 }  // namespace

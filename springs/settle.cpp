@@ -242,6 +242,21 @@ void throw_verlet_divergence(int iteration, double energy, double initial_energy
   throw SolverError(out.str());
 }
 
+DivergenceWatch::DivergenceWatch(const SpringSystem& system, const SettleOptions& options, double initial_energy)
+    : initial_(std::max(initial_energy, energy_floor(system))),
+      bound_(options.energy_growth_bound),
+      interval_(options.energy_interval) {}
+
+void DivergenceWatch::check(int iteration, double energy, const VerletCoefficients& coefficients,
+                            const SettleOptions& options) const {
+  if (diverged(energy)) throw_verlet_divergence(iteration, energy, initial_, coefficients, options);
+}
+
+void DivergenceWatch::check_force(int iteration, double force2, const VerletCoefficients& coefficients,
+                                  const SettleOptions& options) const {
+  if (!std::isfinite(force2)) throw_verlet_divergence(iteration, NAN, initial_, coefficients, options);
+}
+
 VerletCoefficients momentum_coefficients(const SpringSystem& system) {
   const std::size_t n = system.positions.size();
   std::vector<double> stiffness_sum(n, 0.0);

@@ -3,6 +3,7 @@
 
 #include "springs/settle.h"
 
+#include <cmath>
 #include <memory>
 
 namespace fascicle::springs::detail {
@@ -53,6 +54,55 @@ double largest_stiffness_eigenvalue(const SpringSystem& system, int steps);
 /// An energy below which growth is not divergence: 1e-20 of the energy of every spring
 /// stretched by its rest length (or 1e-300 when that is 0).
 double energy_floor(const SpringSystem& system);
+
+/// Nesterov's momentum schedule b_k = k / (k + 3) with adaptive restart (O'Donoghue and Candes
+/// 2015): the solver reports at the start of each step whether the last one went wrong (moved
+/// against the force, or raised the energy); the schedule then starts again from b = 0 and the
+/// solver drops its velocity. One schedule serves every momentum solver, CPU and GPU.
+class MomentumSchedule {
+ public:
+  /// True when the solver must drop its velocity now: `last_step_bad` after at least one step
+  /// with momentum since the last restart.
+  bool restart(bool last_step_bad) {
+    if (k_ == 0 || !last_step_bad) return false;
+    k_ = 0;
+    ++restarts_;
+    return true;
+  }
+  /// This step's momentum coefficient b_k; advances k.
+  double next() {
+    const double b = static_cast<double>(k_) / (k_ + 3.0);
+    ++k_;
+    return b;
+  }
+  int restarts() const { return restarts_; }
+
+ private:
+  int k_ = 0, restarts_ = 0;
+};
+
+/// The divergence test every settle loop applies: NaN/Inf, or an energy above
+/// SettleOptions::energy_growth_bound x the initial one, checked every energy_interval iterations.
+class DivergenceWatch {
+ public:
+  DivergenceWatch() = default;
+  /// `initial_energy` is raised to energy_floor(system), so growth from rest is not divergence.
+  DivergenceWatch(const SpringSystem& system, const SettleOptions& options, double initial_energy);
+  /// True when the energy should be measured after `iteration` steps.
+  bool due(int iteration) const { return interval_ > 0 && iteration % interval_ == 0; }
+  bool diverged(double energy) const { return !std::isfinite(energy) || energy > bound_ * initial_; }
+  double initial_energy() const { return initial_; }
+  /// Verlet and momentum solvers: throws SolverError (throw_verlet_divergence) when `energy`
+  /// diverged after `iteration` steps.
+  void check(int iteration, double energy, const VerletCoefficients& coefficients, const SettleOptions& options) const;
+  /// The same for a step whose squared force came out NaN/Inf (`force2`).
+  void check_force(int iteration, double force2, const VerletCoefficients& coefficients,
+                   const SettleOptions& options) const;
+
+ private:
+  double initial_ = 0.0, bound_ = 0.0;
+  int interval_ = 0;
+};
 
 /// The momentum static solver on the structured path, started from the settled coarse lattice
 /// (coarse_start.h); nullptr when the lattice does not qualify (too small, coarse start off, not a

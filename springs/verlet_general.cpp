@@ -96,20 +96,15 @@ class GeneralVerlet final : public SpringSolver {
     }
     partial_.assign(std::max(blocks_, 1), 0.0);
     scale_ = residual_force_scale(system);
-    floor_ = energy_floor(system);
-    initial_energy_ = std::max(energy(), floor_);
+    watch_ = DivergenceWatch(system, options, energy());
   }
 
   double step() override {
     double momentum = 0.0;
     if (momentum_) {
-      // Nesterov's schedule with gradient restarts, as in the structured path.
-      if (since_restart_ > 0 && power_ < 0.0) {
-        prev_ = x_;
-        since_restart_ = 0;
-      }
-      momentum = static_cast<double>(since_restart_) / (since_restart_ + 3);
-      ++since_restart_;
+      // Gradient restart: the last step moved against the force (f . v < 0).
+      if (schedule_.restart(power_ < 0.0)) prev_ = x_;
+      momentum = schedule_.next();
     }
     double r2 = 0.0;
     if (once_) {
@@ -121,11 +116,11 @@ class GeneralVerlet final : public SpringSolver {
       };
       tbb::parallel_invoke([&] { half(0); }, [&] { half(1); });
       r2 = larger(largest[0], largest[1]);
-      if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+      watch_.check_force(iteration_ + 1, r2, coefficients_, options_);
       power_ = power[0] + power[1];
     } else {
       r2 = compute_forces(x_);
-      if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+      watch_.check_force(iteration_ + 1, r2, coefficients_, options_);
       tbb::parallel_for(tbb::blocked_range<int>(0, blocks_, 1), [&](const tbb::blocked_range<int>& range) {
         for (int blk = range.begin(); blk != range.end(); ++blk)
           partial_[blk] = integrate(blk * kBlock, std::min(n_, (blk + 1) * kBlock), momentum);
@@ -135,7 +130,7 @@ class GeneralVerlet final : public SpringSolver {
     }
     std::swap(x_, prev_);
     ++iteration_;
-    if (iteration_ % options_.energy_interval == 0) check_energy();
+    if (watch_.due(iteration_)) watch_.check(iteration_, energy(), coefficients_, options_);
     return std::sqrt(r2) / scale_;
   }
 
@@ -278,12 +273,6 @@ class GeneralVerlet final : public SpringSolver {
     return e;
   }
 
-  void check_energy() {
-    const double e = energy();
-    if (!std::isfinite(e) || e > options_.energy_growth_bound * initial_energy_)
-      throw_verlet_divergence(iteration_, e, initial_energy_, coefficients_, options_);
-  }
-
   SettleOptions options_;
   VerletCoefficients coefficients_;
   int n_ = 0, blocks_ = 0, iteration_ = 0;
@@ -293,9 +282,10 @@ class GeneralVerlet final : public SpringSolver {
   bool once_ = false;  // a one-block system: each spring once, in two halves
   SpringHalf halves_[2];
   std::vector<double> x_, prev_, force_, partial_;
-  double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
+  double scale_ = 1.0;
+  DivergenceWatch watch_;
   bool momentum_ = false;
-  int since_restart_ = 0;
+  MomentumSchedule schedule_;
   double power_ = 0.0;
 };
 

@@ -368,31 +368,21 @@ class StructuredVerlet final : public SpringSolver {
     detect_uniform();
     if (momentum_) uniform_ab_ = true;  // one a for every point, b set each step
     scale_ = residual_force_scale(system);
-    floor_ = energy_floor(system);
-    initial_energy_ = std::max(energy(), floor_);
+    watch_ = DivergenceWatch(system, options, energy());
   }
 
   double step() override {
     if (momentum_) {
-      // Nesterov's momentum schedule k / (k + 3) with the gradient restart of O'Donoghue and
-      // Candes 2015: when the last step moved against the force (f . v < 0), drop the velocity.
-      if (since_restart_ > 0 && power_ < 0.0) {
+      // Gradient restart: the last step moved against the force (f . v < 0).
+      if (schedule_.restart(power_ < 0.0))
         for (int c = 0; c < 3; ++c) p_[c] = x_[c];
-        since_restart_ = 0;
-        ++restarts_;
-      }
-      coefficients_.b.assign(1, static_cast<double>(since_restart_) / (since_restart_ + 3));
-      ++since_restart_;
+      coefficients_.b.assign(1, schedule_.next());
     }
     const double r2 = sweep(true);
-    if (!std::isfinite(r2)) throw_verlet_divergence(iteration_ + 1, NAN, initial_energy_, coefficients_, options_);
+    watch_.check_force(iteration_ + 1, r2, coefficients_, options_);
     for (int c = 0; c < 3; ++c) std::swap(x_[c], p_[c]);
     ++iteration_;
-    if (iteration_ % options_.energy_interval == 0) {
-      const double e = energy();
-      if (!std::isfinite(e) || e > options_.energy_growth_bound * initial_energy_)
-        throw_verlet_divergence(iteration_, e, initial_energy_, coefficients_, options_);
-    }
+    if (watch_.due(iteration_)) watch_.check(iteration_, energy(), coefficients_, options_);
     return std::sqrt(r2) / scale_;
   }
 
@@ -731,10 +721,10 @@ class StructuredVerlet final : public SpringSolver {
   std::vector<double> row_power_;
   double power_ = 0.0;  // sum over free points of f . (x - x_previous), last sweep
   bool momentum_ = false;
-  int since_restart_ = 0;
-  int restarts_ = 0;
+  MomentumSchedule schedule_;
+  DivergenceWatch watch_;
   std::vector<double> row_energy_;
-  double scale_ = 1.0, floor_ = 0.0, initial_energy_ = 0.0;
+  double scale_ = 1.0;
 };
 
 }  // namespace
