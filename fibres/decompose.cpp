@@ -814,20 +814,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   report.smoothing = {{"steps", options.smooth_steps}, {"weight", options.smooth_weight}, {"reverted", reverted}};
 
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
-  auto fibres_of = [&](const std::vector<Vec3>& positions) {
-    std::vector<std::vector<Vec3>> lines;
-    std::vector<int> rs, ss;
-    for (int j = 1; j + 1 < lattice.ny; ++j)
-      for (int i = 1; i + 1 < lattice.nx; ++i) {
-        std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
-        for (int k = 0; k < lattice.nz; ++k)
-          line[static_cast<std::size_t>(k)] = positions[static_cast<std::size_t>(lattice.index(i, j, k))];
-        lines.push_back(std::move(line));
-        rs.push_back(i - 1);
-        ss.push_back(j - 1);
-      }
-    return lattice_fibres(std::move(lines), rs, ss);
-  };
+  auto fibres_of = [&](const std::vector<Vec3>& positions) { return lattice_interior_fibres(lattice, positions); };
 
   // Segments that leave the muscle between their points (step 10), after every other move.
   std::vector<Vec3> before_segments;

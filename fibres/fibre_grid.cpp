@@ -1,5 +1,7 @@
 #include "fibres/fibre_grid.h"
 
+#include "springs/lattice.h"
+
 #include <cmath>
 #include <utility>
 #include <stdexcept>
@@ -86,6 +88,21 @@ Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector
   fibres.cell_data.push_back({fibre_r_array, std::vector<double>(r.begin(), r.end())});
   fibres.cell_data.push_back({fibre_s_array, std::vector<double>(s.begin(), s.end())});
   return fibres;
+}
+
+Polylines lattice_interior_fibres(const springs::Lattice& lattice, const std::vector<Vec3>& positions) {
+  std::vector<std::vector<Vec3>> lines;
+  std::vector<int> rs, ss;
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i) {
+      std::vector<Vec3> line(static_cast<std::size_t>(lattice.nz));
+      for (int k = 0; k < lattice.nz; ++k)
+        line[static_cast<std::size_t>(k)] = positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+      lines.push_back(std::move(line));
+      rs.push_back(i - 1);
+      ss.push_back(j - 1);
+    }
+  return lattice_fibres(std::move(lines), rs, ss);
 }
 
 }  // namespace fascicle

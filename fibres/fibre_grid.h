@@ -11,6 +11,10 @@
 
 namespace fascicle {
 
+namespace springs {
+struct Lattice;
+}
+
 /// Name of the per-fibre array holding a fibre's first lattice index.
 inline constexpr const char* fibre_r_array = "fibre_r";
 /// Name of the per-fibre array holding a fibre's second lattice index.
@@ -57,5 +61,10 @@ TetVolume tet_volume(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Vec3&
 /// Fibres with their lattice indices as cell data arrays `fibre_r`, `fibre_s`.
 /// `lines`, `r` and `s` have the same size (throws std::invalid_argument otherwise).
 Polylines lattice_fibres(std::vector<std::vector<Vec3>> lines, const std::vector<int>& r, const std::vector<int>& s);
+
+/// The fibres of a decomposition lattice: its interior lines (1 <= i <= nx - 2, 1 <= j <= ny - 2;
+/// the surface ring is not output) at `positions` (one per lattice point), in lattice order,
+/// origin (k = 0) to insertion, with r = i - 1 and s = j - 1.
+Polylines lattice_interior_fibres(const springs::Lattice& lattice, const std::vector<Vec3>& positions);
 
 }  // namespace fascicle

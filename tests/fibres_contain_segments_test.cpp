@@ -49,22 +49,10 @@ springs::Lattice bent_lattice(double w = 1.3) {
 
 /// Fibre segments that leave the tube (the check's count) and inverted cells.
 CheckReport check(const springs::Lattice& lattice, const TriangleMesh& tube) {
-  // The interior lines, as the decomposition writes them.
-  std::vector<std::vector<Vec3>> lines;
-  std::vector<int> rs, ss;
-  for (int j = 1; j + 1 < lattice.ny; ++j)
-    for (int i = 1; i + 1 < lattice.nx; ++i) {
-      std::vector<Vec3> line;
-      for (int k = 0; k < lattice.nz; ++k)
-        line.push_back(lattice.system.positions[static_cast<std::size_t>(lattice.index(i, j, k))]);
-      lines.push_back(line);
-      rs.push_back(i - 1);
-      ss.push_back(j - 1);
-    }
-  const Polylines interior = lattice_fibres(std::move(lines), rs, ss);
   CheckOptions options;
   options.coverage_samples = 200;
-  return check_fibres(interior, tube, automatic_attachments(tube), options);
+  return check_fibres(lattice_interior_fibres(lattice, lattice.system.positions), tube, automatic_attachments(tube),
+                      options);
 }
 
 }  // namespace
