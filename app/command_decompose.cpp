@@ -232,8 +232,6 @@ void add_decompose_command(CLI::App& app) {
                   "Move fibre segments that leave the muscle between their points back inside (true) or leave them "
                   "(false)")
       ->capture_default_str();
-  cmd->add_option("--smooth", o.smooth_steps, "Smoothing passes along the fibres")->capture_default_str();
-  cmd->add_option("--smooth-weight", o.smooth_weight, "Weight of each smoothing pass")->capture_default_str();
   cmd->add_option("--sphere-method", args->sphere_method, "Sphere map: tutte (default) or relax (the thesis's)")
       ->capture_default_str();
   cmd->add_option("--max-landmark-distance", o.attachments.max_landmark_distance,

@@ -87,7 +87,6 @@ std::string with_option_names(const CLI::App& app, const std::string& message) {
   static const std::vector<std::pair<std::string, std::string>> renamed = {
       {"--landmark-twists-deg", "--landmark-twists"},
       {"--max-turning-angle-deg", "--max-turning-angle"},
-      {"--smooth-steps", "--smooth"},
       {"--retry-alternative", "--retry"},
       {"--retry-max-inverted-cells", "--retry-max-inverted"},
       {"--coverage-samples", "--samples"},

@@ -450,10 +450,6 @@ void DecomposeOptions::validate() const {
     throw OptionError("retry_max_inverted_cells: must be >= 0, got " + std::to_string(retry_max_inverted_cells));
   if (!(contact_depth_min > 0.0 && contact_depth_min <= contact_depth))
     throw OptionError("contact_depth_min: must be in (0, contact_depth], got " + std::to_string(contact_depth_min));
-  if (smooth_steps < 0 || smooth_steps > 100'000)
-    throw OptionError("smooth: must be in 0..100000 steps, got " + std::to_string(smooth_steps));
-  if (!(smooth_weight > 0.0 && smooth_weight <= 1.0))
-    throw OptionError("smooth-weight: must be in (0, 1], got " + std::to_string(smooth_weight));
   if (landmark_twists_deg.size() > 16)
     throw OptionError("landmark_twists_deg: at most 16 twists, got " + std::to_string(landmark_twists_deg.size()));
   for (double twist : landmark_twists_deg)
@@ -481,7 +477,6 @@ nlohmann::json DecomposeReport::to_json() const {
   j["settle"] = settle;
   j["containment"] = containment;
   j["untangle"] = untangle;
-  j["smoothing"] = smoothing;
   j["quality"] = quality.to_json();
   j["architecture"] = architecture.to_json();
   j["attempts"] = attempts;
@@ -788,30 +783,6 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   report.containment = {
       {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
   report.settle_seconds = since(stage);
-
-  // Smoothing along fibres, free points only; a point the smoothing would move out stays.
-  long reverted = 0;
-  if (options.smooth_steps > 0) {
-    const std::vector<Vec3> before = system.positions;
-    const int plane = lattice.nx * lattice.ny;
-    for (int step = 0; step < options.smooth_steps; ++step) {
-      std::vector<Vec3> next = system.positions;
-      for (int q = 0; q < lattice.point_count(); ++q) {
-        const int k = q / plane;
-        if (system.fixed[static_cast<std::size_t>(q)] || k == 0 || k == lattice.nz - 1) continue;
-        const Vec3 mid = 0.5 * (system.positions[static_cast<std::size_t>(q - plane)] +
-                                system.positions[static_cast<std::size_t>(q + plane)]);
-        next[static_cast<std::size_t>(q)] =
-            (1.0 - options.smooth_weight) * system.positions[static_cast<std::size_t>(q)] + options.smooth_weight * mid;
-      }
-      system.positions.swap(next);
-    }
-    for (int q : outside_free_points(system, query)) {
-      system.positions[static_cast<std::size_t>(q)] = before[static_cast<std::size_t>(q)];
-      ++reverted;
-    }
-  }
-  report.smoothing = {{"steps", options.smooth_steps}, {"weight", options.smooth_weight}, {"reverted", reverted}};
 
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
   auto fibres_of = [&](const std::vector<Vec3>& positions) { return lattice_interior_fibres(lattice, positions); };

@@ -27,11 +27,10 @@
 ///     a barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally
 ///     first, with the fibre ends free (soft pins) and then held, with containment; see
 ///     docs/decompose.md step 8;
-///  8. optional smoothing along the fibres (free points only);
-///  9. fibre segments that cut the surface between their points are shifted back inside where
+///  8. fibre segments that cut the surface between their points are shifted back inside where
 ///     that folds no cell and takes no other segment out (fibres/contain_segments.h; undone when
 ///     the result then fails the check and would pass without it);
-/// 10. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances (and the segments that leave the muscle, reported).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
@@ -118,8 +117,6 @@ struct DecomposeOptions {
   bool contain_segments = true;
   /// Those moves: sweeps, margin, samples, largest shift (defaults: fibres/contain_segments.h).
   SegmentContainmentOptions segments;
-  int smooth_steps = 0;        ///< Laplacian smoothing passes along the fibres, >= 0 (default 0)
-  double smooth_weight = 0.5;  ///< weight of each pass, (0, 1] (default 0.5)
   /// Units and specific tension of the architecture figures (fibres/architecture.h; default mm,
   /// 61 N/cm^2).
   ArchitectureOptions architecture;
@@ -184,7 +181,7 @@ struct Landmarks {
 struct DecomposeReport {
   std::string status;   ///< "ok" or "failed" (the quality check failed)
   std::string failure;  ///< why, when failed
-  nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle, smoothing;
+  nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle;
   CheckReport quality;
   Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)
   /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
