@@ -294,6 +294,10 @@ void add_decompose_command(CLI::App& app) {
                   "Cast the rim of each attachment face with its fibre ends (true) or leave it where the placement "
                   "put it (false)")
       ->capture_default_str();
+  cmd->add_option("--align-ends", o.align_ends,
+                  "Continue each fibre's end along its last segment onto its attachment area where that folds no "
+                  "cell (true) or keep the cast ends (false)")
+      ->capture_default_str();
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();

@@ -1,6 +1,6 @@
 #pragma once
 /// \file contain_segments.h
-/// Step 10 of the decomposition (docs/decompose.md): fibre segments that leave the muscle between
+/// Step 11 of the decomposition (docs/decompose.md): fibre segments that leave the muscle between
 /// their two points are moved back inside.
 ///
 /// The lattice points are inside after the settle and the untangling (their containment), but

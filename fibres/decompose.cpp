@@ -1,5 +1,6 @@
 #include "fibres/decompose.h"
 
+
 #include "fibres/fibre_grid.h"
 #include "fibres/strip_cast.h"
 #include "geometry/errors.h"
@@ -778,16 +779,19 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     outside = outside_free_points(system, query);
     report.untangle = untangled.to_json();
   }
+  nlohmann::json end_alignment = nullptr;
+  if (options.align_ends) end_alignment = align_ends(lattice, system, query, areas, end_radius).to_json();
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
   report.containment = {
       {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
+  report.containment["end_alignment"] = end_alignment;
   report.settle_seconds = since(stage);
 
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
   auto fibres_of = [&](const std::vector<Vec3>& positions) { return lattice_interior_fibres(lattice, positions); };
 
-  // Segments that leave the muscle between their points (step 10), after every other move.
+  // Segments that leave the muscle between their points (step 11), after every other move.
   std::vector<Vec3> before_segments;
   long segments_moved = 0;
   if (options.contain_segments) {
@@ -809,7 +813,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   stage_started("check");
   stage = Clock::now();
   report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
-  // Step 10's moves guard the points, the segments and the cells, not the coverage (a global
+  // Step 11's moves guard the points, the segments and the cells, not the coverage (a global
   // figure): when the result fails and the fibres before the moves pass, those are kept.
   if (!report.quality.pass && segments_moved > 0) {
     Polylines unmoved = fibres_of(before_segments);

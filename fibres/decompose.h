@@ -27,14 +27,17 @@
 ///     a barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally
 ///     first, with the fibre ends free (soft pins) and then held, with containment; see
 ///     docs/decompose.md step 8;
-///  8. fibre segments that cut the surface between their points are shifted back inside where
+///  8. the fibre ends continued along their fibres onto the surface (no hook at the end joint),
+///     where that stays on the area and folds no cell (fibres/align_ends.h);
+///  9. fibre segments that cut the surface between their points are shifted back inside where
 ///     that folds no cell and takes no other segment out (fibres/contain_segments.h; undone when
 ///     the result then fails the check and would pass without it);
-///  9. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+/// 10. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances (and the segments that leave the muscle, reported).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
+#include "fibres/align_ends.h"
 #include "fibres/architecture.h"
 #include "fibres/contain_segments.h"
 #include "fibres/fibre_check.h"
@@ -112,11 +115,14 @@ struct DecomposeOptions {
   /// Skip the alternative placement and the rims left when the first result has more inverted cells
   /// (or outlasted the free-ring untangling), >= 0 (default 50: such results seldom pass on a retry).
   long retry_max_inverted_cells = 50;
-  /// Move the fibre segments that leave the muscle back inside (step 10, fibres/contain_segments.h)
+  /// Move the fibre segments that leave the muscle back inside (step 11, fibres/contain_segments.h)
   /// (default true).
   bool contain_segments = true;
   /// Those moves: sweeps, margin, samples, largest shift (defaults: fibres/contain_segments.h).
   SegmentContainmentOptions segments;
+  /// Continue each fibre's end along its last inner segment onto the surface where that stays on
+  /// the area and folds no cell (fibres/align_ends.h; default true).
+  bool align_ends = true;
   /// Units and specific tension of the architecture figures (fibres/architecture.h; default mm,
   /// 61 N/cm^2).
   ArchitectureOptions architecture;

@@ -263,7 +263,7 @@ bool segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, dou
 
 /// segment_leaves() for segment k (points k, k + 1) of a fibre of `segments` segments: the
 /// fibre's ends (point 0, point `segments`) lie on the surface by design, so hits within
-/// `end_tolerance` (mesh units) of them do not count. The check's rule and step 10's.
+/// `end_tolerance` (mesh units) of them do not count. The check's rule and step 11's.
 bool fibre_segment_leaves(const SurfaceQuery& query, const Vec3& a, const Vec3& b, int k, int segments,
                           double end_tolerance);
 

@@ -2,7 +2,7 @@
 # The --quality levels measured on a folder of muscles: for each level, `fascicle batch` with
 # default options and that level (timed), then `fascicle check` (every criterion, default
 # thresholds) on each muscle's fibres; prints one Markdown table row per level.
-# Usage: scripts/quality_levels.sh [FASCICLE [MUSCLES [OUT [LEVELS...]]]]
+# Usage: [BATCH_ARGS="--option value ..."] scripts/quality_levels.sh [FASCICLE [MUSCLES [OUT [LEVELS...]]]]
 #   defaults: build/fascicle, ../shared/data/muscles, /tmp/fascicle-quality, draft standard fine
 set -euo pipefail
 program=$(realpath "${1:-build/fascicle}")
@@ -19,7 +19,8 @@ for level in "${levels[@]}"; do
   rm -rf "$dir"
   start=$(date +%s.%N)
   set +e
-  "$program" -q batch "$muscles" -o "$dir" --jobs 2 --quality "$level" > "$dir.log" 2>&1
+  # shellcheck disable=SC2086  # BATCH_ARGS: extra batch options, split on spaces
+  "$program" -q batch "$muscles" -o "$dir" --jobs 2 --quality "$level" ${BATCH_ARGS:-} > "$dir.log" 2>&1
   set -e
   seconds=$(echo "$(date +%s.%N) - $start" | bc)
   # The whole check on each result, two at a time.

@@ -67,7 +67,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
     unfolded += q["inverted_cells"].get<long>() == 0;
     inverted += q["inverted_cells"].get<long>();
     covered += q["coverage"]["p95"].get<double>() <= 2.0;
-    // Step 10 (segments moved back inside): its count after is the check's where every fibre
+    // Step 11 (segments moved back inside): its count after is the check's where every fibre
     // point is inside (the check also counts a segment with a point outside).
     REQUIRE(r["containment"].contains("segments"));
     if (q["inside_fraction"].get<double>() == 1.0)
@@ -140,7 +140,7 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   // Widened ends: at least two corpus muscles have two heads at an automatic end (the opendihu
   // left biceps among them); room for the opendihu wraps, which can depend on the machine's load.
   CHECK(widened >= 2);
-  // Segments that leave the muscle between their points: step 10 must cut them (crossing <
+  // Segments that leave the muscle between their points: step 11 must cut them (crossing <
   // crossing_before, below) and the total stay under a ceiling with room for round-off in the
   // retries and the untangling.
   CHECK(crossing <= 900);
