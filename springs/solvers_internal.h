@@ -66,7 +66,6 @@ class MomentumSchedule {
   bool restart(bool last_step_bad) {
     if (k_ == 0 || !last_step_bad) return false;
     k_ = 0;
-    ++restarts_;
     return true;
   }
   /// This step's momentum coefficient b_k; advances k.
@@ -75,10 +74,8 @@ class MomentumSchedule {
     ++k_;
     return b;
   }
-  int restarts() const { return restarts_; }
-
  private:
-  int k_ = 0, restarts_ = 0;
+  int k_ = 0;
 };
 
 /// The divergence test every settle loop applies: NaN/Inf, or an energy above
