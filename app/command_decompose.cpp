@@ -4,7 +4,7 @@
 
 #include "app/commands.h"
 #include "app/report_file.h"
-#include "fibres/decompose.h"
+#include "fibres/decompose_mesh.h"
 #include "fibres/fibre_field.h"
 #include "repair/tetrahedralize.h"
 #include "geometry/mesh_stats.h"

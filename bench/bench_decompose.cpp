@@ -3,7 +3,7 @@
 
 #include "bench/bench_commands.h"
 
-#include "fibres/decompose.h"
+#include "fibres/decompose_mesh.h"
 #include "geometry/atomic_file.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"

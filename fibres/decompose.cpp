@@ -418,7 +418,6 @@ CheckOptions DecomposeOptions::default_check() {
 }
 
 void DecomposeOptions::validate() const {
-  repair.validate();
   architecture.validate();
   sphere.validate();
   attachments.validate();
@@ -488,19 +487,6 @@ nlohmann::json DecomposeReport::to_json() const {
                   {"settle", settle_seconds}, {"check", check_seconds},
                   {"total", seconds}};
   return j;
-}
-
-Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options) {
-  options.validate();
-  const auto start = Clock::now();
-  if (options.progress) options.progress("repair");
-  RepairResult repaired = repair_mesh(soup, options.repair);
-  const double repair_seconds = since(start);
-  Decomposition out = decompose_repaired(repaired.mesh, landmarks, options);
-  out.report.repair = repaired.report.to_json();
-  out.report.repair_seconds = repair_seconds;
-  out.report.seconds += repair_seconds;
-  return out;
 }
 
 namespace {

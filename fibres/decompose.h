@@ -3,7 +3,9 @@
 /// The whole job (../shared/docs/METHOD.md, "The job" and "The pipeline"): a raw muscle surface
 /// in, muscle fibres out, checked.
 ///
-///  1. repair (repair/repair.h) into a closed genus-0 manifold;
+///  1. repair (repair/repair.h) into a closed genus-0 manifold: decompose() of
+///     fibres/decompose_mesh.h, which then calls decompose_repaired() below with the repaired mesh
+///     (plain data: this header does not depend on the repair stage);
 ///  2. attachment areas: from landmark files, or automatic (morph/attachments.h);
 ///  3. sphere map of the muscle (morph/sphere_map.h), bijective, and a locator on it;
 ///  4. the template lattice (springs/lattice.h) with a ring of surface lines around the requested
@@ -47,7 +49,6 @@
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
 #include "morph/sphere_map.h"
-#include "repair/repair.h"
 #include "springs/lattice.h"
 #include "springs/settle.h"
 
@@ -73,7 +74,6 @@ RestShape parse_rest_shape(const std::string& name);
 
 /// Options of a decomposition. Defaults are those of `fascicle decompose`.
 struct DecomposeOptions {
-  RepairOptions repair;           ///< repair stage (defaults: repair/repair.h)
   SphereMapOptions sphere;        ///< muscle sphere map (default tutte)
   AttachmentOptions attachments;  ///< landmark tolerance, automatic end fraction
   /// Landmark areas joined into gapless strips before the placement, the cast and the check
@@ -249,19 +249,13 @@ bool better_result(const CheckReport& a, const CheckReport& b);
 /// turn this way (step 6).
 int lattice_handedness(const springs::SpringSystem& system, const springs::Lattice& lattice);
 
-/// Decomposes the raw muscle `soup` (any units) into fibres. Method: see the file comment.
-/// The result's report says "failed" when the final check fails (the fibres are still returned
-/// for inspection; the command line then writes no fibre file). Throws TopologyError
-/// (repair_failed) when the mesh cannot be repaired, InputError(landmarks) for far landmarks or
-/// coinciding areas, OptionError for bad options, SolverError when the sphere map is not a
-/// bijection or the settle diverges, Error(gpu) for GPU failures.
-Decomposition decompose(const PolygonSoup& soup, const Landmarks& landmarks, const DecomposeOptions& options = {});
-
 /// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; while the result
 /// fails the check, again with each of retry_plan()'s options in turn (the alternative placement,
 /// the face rims left, then, with landmark areas, the corner twists of options.landmark_twists_deg), keeping the best
 /// result by better_result() (the report's `attempts` lists every try, `kept_attempt` the one
-/// returned). Throws as decompose(); an exception in a retry (not the first attempt) is recorded
+/// returned). Throws InputError(landmarks) for far landmarks or coinciding areas, OptionError for
+/// bad options, SolverError when the sphere map is not a bijection or the settle diverges,
+/// Error(gpu) for GPU failures; an exception in a retry (not the first attempt) is recorded
 /// in `attempts` and that retry skipped.
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options = {});

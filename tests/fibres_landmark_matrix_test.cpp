@@ -6,7 +6,7 @@
 // The full matrix (4 muscles x 5 templates) is measured by `fascicle bench decompose`
 // (docs/BENCHMARKS.md); this test runs the part of it that is cheap enough for CI on 2 cores,
 // with a floor that leaves room for one case.
-#include "fibres/decompose.h"
+#include "fibres/decompose_mesh.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
 #include "geometry/primitives.h"

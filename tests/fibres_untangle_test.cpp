@@ -553,7 +553,7 @@ TEST_CASE("signed distance grid: close to the sphere's distance, gradient along 
   CHECK_THROWS_AS(SignedDistanceGrid(query, Vec3::Zero(), Vec3::Zero(), 0.1), Error);
 }
 
-#include "fibres/decompose.h"
+#include "fibres/decompose_mesh.h"
 #include "geometry/mesh_io.h"
 #include "tests/test_common.h"
 

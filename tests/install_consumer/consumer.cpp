@@ -1,6 +1,6 @@
 // Decomposes a capsule through the installed library: prints the fibre count and the check's
 // verdict, exit 0 when the decomposition passes.
-#include "fibres/decompose.h"
+#include "fibres/decompose_mesh.h"
 #include "geometry/primitives.h"
 
 #include <cstdio>
