@@ -61,13 +61,7 @@ EndAlignmentReport align_ends(const springs::Lattice& lattice, springs::SpringSy
           const double reach = options.max_extension * std::max((p1 - p2).norm(), (end - p1).norm());
           Vec3 hit;
           if (!direction.allFinite() || !query.first_hit(p1, direction, reach, hit)) continue;
-          bool near = false;
-          for (const SurfacePoint& p : area->points)
-            if ((p.position - hit).squaredNorm() <= radius * radius) {
-              near = true;
-              break;
-            }
-          if (!near) continue;
+          if (!area->near(hit, radius)) continue;
           move_of[static_cast<std::size_t>(i + lattice.nx * j)] = static_cast<int>(moves.size());
           moves.push_back({i, j, end, hit, true});
           at(i, j, k_end) = hit;

@@ -229,9 +229,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
           rim_offsets[r] = fit.map * (grid_position(lattice, rim[r][0], rim[r][1]) - g_mean);
       }
     }
-    Vec3 area_centre = Vec3::Zero();
-    for (const SurfacePoint& p : area->points) area_centre += p.position;
-    if (!area->points.empty()) area_centre /= static_cast<double>(area->points.size());
+    const Vec3 area_centre = area->centroid();
     std::vector<Vec3> axes{layer_axis};
     const Vec3 to_area = (area_centre - c1).normalized();
     if (!area->points.empty() && to_area.allFinite()) axes.push_back(to_area);
@@ -257,11 +255,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
         return query.first_hit(start, axis, reach, end);
       };
-      const auto near = [&](const Vec3& end) {
-        for (const SurfacePoint& p : area->points)
-          if ((p.position - end).squaredNorm() <= radius * radius) return true;
-        return false;
-      };
+      const auto near = [&](const Vec3& end) { return area->near(end, radius); };
       for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
         const StripCast cast = cast_strip_face(c1, offsets, axes[a], area_points, hit, near);
         placed = cast.placed;

@@ -290,12 +290,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
   report.origin_region_vertices = static_cast<int>(std::count(origin_in.begin(), origin_in.end(), 1));
   report.insertion_region_vertices = static_cast<int>(std::count(insertion_in.begin(), insertion_in.end(), 1));
   // Landmark areas: each centre towards the end of its region away from the other area.
-  const auto centroid = [](const AttachmentArea& area) {
-    Vec3 c = Vec3::Zero();
-    for (const SurfacePoint& p : area.points) c += p.position;
-    return area.points.empty() ? c : Vec3(c / static_cast<double>(area.points.size()));
-  };
-  const Vec3 origin_centroid = centroid(areas.origin), insertion_centroid = centroid(areas.insertion);
+  const Vec3 origin_centroid = areas.origin.centroid(), insertion_centroid = areas.insertion.centroid();
   const bool toward_end = !areas.automatic && options.landmark_centre_keep < 1.0;
   const int origin_vertex = region_centre(muscle, sphere, origin_in, "origin (" + areas.origin.source + ")",
                                           toward_end ? &insertion_centroid : nullptr, options.landmark_centre_keep);

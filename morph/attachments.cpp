@@ -111,6 +111,12 @@ Vec3 AttachmentArea::centroid() const {
   return points.empty() ? sum : Vec3(sum / static_cast<double>(points.size()));
 }
 
+bool AttachmentArea::near(const Vec3& x, double radius) const {
+  const double r2 = radius * radius;
+  return std::any_of(points.begin(), points.end(),
+                     [&](const SurfacePoint& p) { return (p.position - x).squaredNorm() <= r2; });
+}
+
 nlohmann::json AttachmentArea::to_json() const {
   nlohmann::json j = {{"source", source}, {"points", points.size()}, {"max_distance", max_distance}};
   if (end_pieces > 0) {

@@ -43,6 +43,9 @@ struct AttachmentArea {
   int end_pieces = 0;
   /// Mean position of the points on the surface (mesh units).
   Vec3 centroid() const;
+  /// Whether `x` lies within `radius` (mesh units) of one of the points: a fibre end placed there
+  /// counts as on the area.
+  bool near(const Vec3& x, double radius) const;
   /// For reports: source, points (the count), max_distance and, for automatic areas,
   /// end_fraction and end_pieces.
   nlohmann::json to_json() const;
