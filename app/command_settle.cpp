@@ -9,12 +9,9 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
 #include "geometry/thesis_format.h"
+#include "springs/compute_backend.h"
 #include "springs/settle.h"
 #include "springs/thesis_settle.h"
-#ifdef FASCICLE_HAVE_SHADERS
-#include "shaders/gl_context.h"
-#include "shaders/gpu_settle.h"
-#endif
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -117,72 +114,43 @@ void run_settle(const SettleArgs& args) {
   if (!args.targets.empty()) springs::apply_targets(system, springs::read_targets(args.targets), args.targets);
   const springs::LatticeShape* shape_ptr = shape ? &*shape : nullptr;
 
-  // Compute backend: the CPU solvers or the GPU through OpenGL (shaders/).
-  std::string compute = "cpu", reason;
+  // Compute backend: the CPU solvers or the GPU through OpenGL (springs/compute_backend.h).
+  springs::ComputeRequest request;
+  request.name = args.backend;
+  request.solver = options.solver;
+  request.points = system.positions.size();
+  request.device = args.gl_device;
+  request.check_interval = args.check_interval;
+  request.polish = args.gpu_polish;
+  const std::unique_ptr<springs::ComputeBackend> backend = springs::make_compute_backend(request);
+  const std::string compute = backend->name(), reason = backend->reason();
+  if (compute == "cpu" && args.backend == "auto" && reason.find("no OpenGL context") != std::string::npos)
+    spdlog::warn("backend auto: no OpenGL context; using the CPU");
+  spdlog::info("backend {}: {}", compute, reason);
   nlohmann::json gpu_info = nullptr;
   springs::SettleReport report;
-#ifdef FASCICLE_HAVE_SHADERS
-  {
-    const bool large =
-        options.solver == springs::SolverKind::verlet && system.positions.size() >= shaders::kAutoGpuMinPoints;
-    const bool hardware = args.backend == "auto" && large && shaders::hardware_gl_device_available();
-    const shaders::BackendChoice choice =
-        shaders::choose_backend(args.backend, options.solver, system.positions.size(), hardware);
-    compute = choice.backend;
-    reason = choice.reason;
-  }
-#else
-  if (args.backend == "gl" || args.backend == "gl-gs")
-    throw Error(ErrorCode::gpu, "backend: " + args.backend +
-                                    " is not in this build (OpenGL, EGL or GLEW was not "
-                                    "found when it was built); use --backend cpu");
-  if (args.backend != "cpu" && args.backend != "auto")
-    throw OptionError("backend: unknown backend '" + args.backend + "' (valid: cpu, gl, gl-gs, auto)");
-  reason = args.backend == "cpu" ? "requested (--backend cpu)" : "auto: this build has no OpenGL backend";
-#endif
-  spdlog::info("backend {}: {}", compute, reason);
-#ifdef FASCICLE_HAVE_SHADERS
-  std::unique_ptr<shaders::GlContext> gl;
-  if (compute != "cpu") {
-    shaders::GlContextOptions context_options;
-    context_options.device = args.gl_device;
-    try {
-      gl = std::make_unique<shaders::GlContext>(context_options);
-    } catch (const shaders::GpuError& e) {
-      if (args.backend != "auto") throw;
-      spdlog::warn("backend auto: no OpenGL context ({}); using the CPU", e.what());
-      compute = "cpu";
-      reason += "; no OpenGL context, fell back to cpu";
-    }
-  }
-#endif
   if (compute == "cpu") {
-    report = springs::settle(system, options, shape_ptr);
+    report = backend->settle(system, options, shape_ptr);
   } else {
-#ifdef FASCICLE_HAVE_SHADERS
-    const shaders::GlContext& context = *gl;
-    spdlog::info("OpenGL: {} | {} | {}{}", context.renderer(), context.version(), context.platform(),
-                 context.hardware() ? "" : " (software renderer, no GPU)");
-    shaders::GpuSettleOptions gpu_options;
-    gpu_options.backend = shaders::parse_gpu_backend(compute);
-    gpu_options.check_interval = args.check_interval;
-    gpu_options.polish = args.gpu_polish;
-    const shaders::GpuSettleReport gpu = shaders::settle_gpu(context, system, options, gpu_options, shape_ptr);
-    report = gpu;
+    const springs::ComputeDevice device = backend->device();
+    spdlog::info("OpenGL: {} | {} | {}{}", device.renderer, device.gl_version, device.platform,
+                 device.hardware ? "" : " (software renderer, no GPU)");
+    springs::GpuSettleFigures gpu;
+    report = backend->settle(system, options, shape_ptr, &gpu);
     if (gpu.polished)
       spdlog::info(
           "the residual stopped falling at {:.3g} on the GPU (float32 precision); the CPU polished in "
           "double: {} iterations to {:.3g}, {:.3f} s",
-          gpu.gpu_residual, gpu.polish_iterations, gpu.residual, gpu.polish_seconds);
+          gpu.gpu_residual, gpu.polish_iterations, report.residual, gpu.polish_seconds);
     else if (gpu.stalled)
       spdlog::warn(
           "the residual stopped falling at {:.3g} on the GPU (float32 precision); use --gpu-polish "
           "true (with iterations left of --max-iterations) or --backend cpu for a tolerance below it",
-          gpu.residual);
-    gpu_info = {{"renderer", gpu.renderer},
-                {"gl_version", gpu.gl_version},
-                {"hardware", gpu.hardware},
-                {"platform", context.platform()},
+          report.residual);
+    gpu_info = {{"renderer", device.renderer},
+                {"gl_version", device.gl_version},
+                {"hardware", device.hardware},
+                {"platform", device.platform},
                 {"readback_seconds", gpu.readback_seconds},
                 {"gpu_bytes", gpu.gpu_bytes},
                 {"check_interval", args.check_interval},
@@ -192,7 +160,6 @@ void run_settle(const SettleArgs& args) {
                 {"polished", gpu.polished},
                 {"polish_iterations", gpu.polish_iterations},
                 {"polish_seconds", gpu.polish_seconds}};
-#endif
   }
   spdlog::info("settled {} points ({} fixed, {} springs) with {} [{}]: {} iterations, residual {:.3g}{}, {:.3f} s",
                system.positions.size(), std::count(system.fixed.begin(), system.fixed.end(), 1), system.springs.size(),

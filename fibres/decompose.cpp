@@ -7,6 +7,7 @@
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
 #include "morph/surface_query.h"
+#include "springs/compute_backend.h"
 
 #include <Eigen/SVD>
 #include <tbb/parallel_invoke.h>
@@ -19,10 +20,6 @@
 #include <tuple>
 #include <cmath>
 
-#ifdef FASCICLE_HAVE_SHADERS
-#include "shaders/gl_context.h"
-#include "shaders/gpu_settle.h"
-#endif
 
 namespace fascicle {
 
@@ -527,27 +524,27 @@ PreparedLattice prepare_lattice(const DecomposeOptions& options) {
   return out;
 }
 
-// The OpenGL context of a decomposition's GPU settles (backend "gl"): made by the first of them
-// on the calling thread and kept for the others, the attempts' included, instead of a context
-// (EGL display, driver, GLEW) for every settle.
-class GpuContextCache {
+// The compute backend of a decomposition's settles (springs/compute_backend.h): the CPU, or for
+// backend "gl" the GPU, made by the first settle and kept for the others, the attempts'
+// included, instead of an OpenGL context (EGL display, driver, GLEW) for every settle.
+class ComputeCache {
  public:
-#ifdef FASCICLE_HAVE_SHADERS
-  const shaders::GlContext& get() {
-    if (!context_) context_ = std::make_unique<shaders::GlContext>();
-    return *context_;
+  explicit ComputeCache(const std::string& backend) { request_.name = backend == "gl" ? "gl" : "cpu"; }
+  springs::ComputeBackend& get() {
+    if (!backend_) backend_ = springs::make_compute_backend(request_);
+    return *backend_;
   }
 
  private:
-  std::unique_ptr<shaders::GlContext> context_;
-#endif
+  springs::ComputeRequest request_;
+  std::unique_ptr<springs::ComputeBackend> backend_;
 };
 
 // One whole decomposition of a repaired muscle (steps 2-9) with the options as given.
-// `query`, `sphere`, `prepared` and `gpu` are made once for all attempts.
+// `query`, `sphere`, `prepared` and `compute` are made once for all attempts.
 Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
                                 const PreparedLattice& prepared, const Landmarks& landmarks,
-                                const DecomposeOptions& options, GpuContextCache& gpu) {
+                                const DecomposeOptions& options, ComputeCache& compute) {
   const auto start = Clock::now();
   Decomposition out;
   out.muscle = muscle;
@@ -684,25 +681,16 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     for (;;) {
       springs::SettleReport settled;
       nlohmann::json gpu_fields = nlohmann::json::object();  // the GPU's stop and the CPU's polish
-      if (options.backend == "gl") {
-#ifdef FASCICLE_HAVE_SHADERS
-        const shaders::GpuSettleReport gpu_report =
-            shaders::settle_gpu(gpu.get(), system, settle_options, {}, anchor_spring.empty() ? &shape : nullptr);
-        report.renderer = gpu_report.renderer;
-        settled = gpu_report;
-        gpu_fields = {{"gpu_residual", gpu_report.gpu_residual},
-                      {"stalled", gpu_report.stalled},
-                      {"polished", gpu_report.polished},
-                      {"polish_iterations", gpu_report.polish_iterations},
-                      {"polish_seconds", gpu_report.polish_seconds}};
-#else
-        (void)gpu;
-        throw Error(ErrorCode::gpu,
-                    "backend: gl is not in this build (OpenGL, EGL or GLEW was not found when it "
-                    "was built); use --backend cpu");
-#endif
-      } else {
-        settled = springs::settle(system, settle_options, anchor_spring.empty() ? &shape : nullptr);
+      springs::ComputeBackend& backend = compute.get();
+      springs::GpuSettleFigures figures;
+      settled = backend.settle(system, settle_options, anchor_spring.empty() ? &shape : nullptr, &figures);
+      if (backend.name() != "cpu") {
+        report.renderer = backend.device().renderer;
+        gpu_fields = {{"gpu_residual", figures.gpu_residual},
+                      {"stalled", figures.stalled},
+                      {"polished", figures.polished},
+                      {"polish_iterations", figures.polish_iterations},
+                      {"polish_seconds", figures.polish_seconds}};
       }
       solves.push_back(settle_json(settled));
       solves.back().update(gpu_fields);
@@ -923,13 +911,13 @@ struct PlanResult {
 
 PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
                     const PreparedLattice& prepared, const Landmarks& landmarks, const DecomposeOptions& options,
-                    GpuContextCache& gpu, const std::string& first_change) {
+                    ComputeCache& compute, const std::string& first_change) {
   PlanResult out;
   Decomposition& best = out.best;
   nlohmann::json& attempts = out.attempts;
   int& kept = out.kept;
   double& seconds = out.seconds;
-  best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, gpu);
+  best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, compute);
   attempts.push_back(attempt_json(first_change, options, best.report));
   seconds = best.report.seconds;
   DecomposeOptions kept_options = options;  // the options of the kept result
@@ -956,7 +944,7 @@ PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const
     }
     try {
       if (options.progress) options.progress("try " + std::to_string(attempts.size() + 1) + " (" + change + ")");
-      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, gpu);
+      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, compute);
       if (step.starts_sequence) {
         first_inverted = d.report.quality.inverted_cells;
         first_ring_freed = ring_freed(d);
@@ -990,7 +978,7 @@ PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const
       retry.landmark_twists_deg.clear();
       retry.end_share_retry = 0.0;
       try {
-        Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, gpu);
+        Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, compute);
         attempts.push_back(attempt_json("meridian_rings", retry, d.report));
         attempts.back()["layer_ratio"] = layers(d);
         seconds += d.report.seconds;
@@ -1048,7 +1036,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       });
   const SurfaceQuery& query = *built_query;
   const double setup_seconds = since(start);
-  GpuContextCache gpu;
+  ComputeCache compute(options.backend);
   PlanResult plan;
   if (narrow_first) {
     // Narrow edge cells first, without the untangling's free-ring attempts; a result that passes
@@ -1060,7 +1048,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     std::optional<Decomposition> first;
     nlohmann::json first_json;
     try {
-      first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, gpu);
+      first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, compute);
       first_json = attempt_json("none", narrow, first->report);
     } catch (const Error& e) {
       first_json = attempt_header("none", narrow);
@@ -1075,7 +1063,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       plan.attempts.push_back(first_json);
       plan.seconds = plan.best.report.seconds;
     } else {
-      plan = run_plan(muscle, query, sphere, prepared_even, landmarks, even, gpu, "even_edge_cells");
+      plan = run_plan(muscle, query, sphere, prepared_even, landmarks, even, compute, "even_edge_cells");
       plan.attempts.insert(plan.attempts.begin(), first_json);
       ++plan.kept;
       if (first) {
@@ -1087,7 +1075,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       }
     }
   } else {
-    plan = run_plan(muscle, query, sphere, prepared, landmarks, options, gpu, "none");
+    plan = run_plan(muscle, query, sphere, prepared, landmarks, options, compute, "none");
   }
   // Landmark areas that failed every try: the plan once more with meridian rings and narrow edge
   // cells, the better result kept.
@@ -1100,7 +1088,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     narrow.even_layers_ratio = 0.0;
     try {
       const PreparedLattice prepared_narrow = prepare_lattice(narrow);
-      PlanResult extra = run_plan(muscle, query, sphere, prepared_narrow, landmarks, narrow, gpu, "landmark_narrow");
+      PlanResult extra = run_plan(muscle, query, sphere, prepared_narrow, landmarks, narrow, compute, "landmark_narrow");
       const int offset = static_cast<int>(plan.attempts.size());
       for (auto& attempt : extra.attempts) plan.attempts.push_back(std::move(attempt));
       plan.seconds += extra.seconds;
