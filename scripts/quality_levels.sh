@@ -4,6 +4,8 @@
 # thresholds) on each muscle's fibres; prints one Markdown table row per level.
 # Usage: [BATCH_ARGS="--option value ..."] scripts/quality_levels.sh [FASCICLE [MUSCLES [OUT [LEVELS...]]]]
 #   defaults: build/fascicle, ../shared/data/muscles, /tmp/fascicle-quality, draft standard fine
+# Two runs (say with and without an option in BATCH_ARGS) are compared muscle by muscle by
+# scripts/quality_compare.py OUT1/LEVEL OUT2/LEVEL.
 set -euo pipefail
 program=$(realpath "${1:-build/fascicle}")
 muscles=$(realpath "${2:-../shared/data/muscles}")
