@@ -278,9 +278,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
             placed = false;
             break;
           }
-          double nearest = 1e300;
-          for (const SurfacePoint& p : area->points) nearest = std::min(nearest, (p.position - hit).squaredNorm());
-          if (nearest > radius * radius) {
+          if (!area->near(hit, radius)) {
             placed = false;
             break;
           }
