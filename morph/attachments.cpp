@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <functional>
+#include <set>
 #include <cstdio>
 #include <numeric>
 
@@ -100,6 +102,9 @@ void AttachmentOptions::validate() const {
     throw OptionError("attachment option end_fraction = " + std::to_string(end_fraction) + ": must be in (0, 0.5)");
   if (!(connect_margin >= 0.0))
     throw OptionError("attachment option connect_margin = " + std::to_string(connect_margin) + ": must be >= 0");
+  if (!(max_point_spacing > 0.0))
+    throw OptionError("attachment option max_point_spacing = " + std::to_string(max_point_spacing) +
+                      ": must be > 0");
   if (!(max_end_fraction >= end_fraction && max_end_fraction < 0.5))
     throw OptionError("attachment option max_end_fraction = " + std::to_string(max_end_fraction) +
                       ": must be in [end_fraction, 0.5)");
@@ -212,6 +217,44 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
     p.position = mesh.positions[v];
     if (along[v] >= upper.threshold) out.origin.points.push_back(p);
     if (along[v] <= lower.threshold) out.insertion.points.push_back(p);
+  }
+  // Points across the band's triangles (all three corners in the band): on each edge longer than
+  // the spacing, and inside each such triangle, on a barycentric grid of n steps a side. A point
+  // of the area's surface is then near an area point however long the mesh's edges.
+  const double spacing = options.max_point_spacing * extent;
+  if (spacing > 0.0) {
+    const auto densify = [&](AttachmentArea& area, const std::function<bool(int)>& in) {
+      std::set<std::pair<int, int>> edges_done;
+      for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+        const Triangle& t = mesh.triangles[f];
+        if (!in(t[0]) || !in(t[1]) || !in(t[2])) continue;
+        const Vec3 &a = mesh.positions[t[0]], &b = mesh.positions[t[1]], &c = mesh.positions[t[2]];
+        const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+        const int n = static_cast<int>(std::ceil(longest / spacing));
+        if (n < 2) continue;
+        const auto add = [&](int i, int j) {  // barycentric (n - i - j, i, j) / n
+          SurfacePoint p;
+          p.face = static_cast<int>(f);
+          p.barycentric = Vec3(n - i - j, i, j) / n;
+          p.position = p.barycentric[0] * a + p.barycentric[1] * b + p.barycentric[2] * c;
+          area.points.push_back(p);
+        };
+        for (int i = 1; i < n; ++i)
+          for (int j = 1; i + j < n; ++j) add(i, j);
+        // Each edge once: from its lower-numbered corner's triangle that reaches it first.
+        for (int e = 0; e < 3; ++e) {
+          const int u = t[e], w = t[(e + 1) % 3];
+          if (!edges_done.insert({std::min(u, w), std::max(u, w)}).second) continue;
+          for (int s = 1; s < n; ++s) {
+            if (e == 0) add(s, 0);          // a -> b
+            else if (e == 1) add(n - s, s);  // b -> c
+            else add(0, n - s);             // c -> a
+          }
+        }
+      }
+    };
+    densify(out.origin, [&](int v) { return face_of[v] >= 0 && along[v] >= upper.threshold; });
+    densify(out.insertion, [&](int v) { return face_of[v] >= 0 && along[v] <= lower.threshold; });
   }
   return out;
 }

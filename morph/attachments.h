@@ -27,6 +27,11 @@ struct AttachmentOptions {
   /// A band widened by connected_ends grows by this share of the extent more, up to max_end_fraction,
   /// >= 0 (default 0.02: so that the piece joining the heads is not a thin neck).
   double connect_margin = 0.02;
+  /// Automatic areas: largest spacing of the area's points across its triangles, share of the extent,
+  /// > 0 (default 0.01: every point of the area's surface then lies within 0.006 of the extent of an
+  /// area point, inside the 0.01 by which placement, casts and the check tell a point on the area,
+  /// however coarse the mesh; the vertices alone leave gaps wider than that on a coarse mesh).
+  double max_point_spacing = 0.01;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
@@ -34,7 +39,9 @@ struct AttachmentOptions {
 /// One attachment area: its points on the surface.
 struct AttachmentArea {
   std::string source;                ///< file name, or "automatic"
-  std::vector<SurfacePoint> points;  ///< on the muscle surface (face, barycentric, position)
+  /// On the muscle surface (face, barycentric, position). Automatic areas: the band's vertices, then
+  /// points across its triangles (AttachmentOptions::max_point_spacing).
+  std::vector<SurfacePoint> points;
   double max_distance = 0.0;         ///< largest landmark-to-surface distance, mesh units
   /// Automatic areas: the share of the extent the area's band takes (end_fraction, or wider where
   /// AttachmentOptions::connected_ends joined its pieces), and how many connected pieces the
