@@ -241,7 +241,7 @@ Attachments automatic_attachments(const TriangleMesh& mesh, const AttachmentOpti
         };
         for (int i = 1; i < n; ++i)
           for (int j = 1; i + j < n; ++j) add(i, j);
-        // Each edge once: from its lower-numbered corner's triangle that reaches it first.
+        // Each edge once, from the first band triangle that has it (its neighbour skips it).
         for (int e = 0; e < 3; ++e) {
           const int u = t[e], w = t[(e + 1) % 3];
           if (!edges_done.insert({std::min(u, w), std::max(u, w)}).second) continue;
