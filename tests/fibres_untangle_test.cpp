@@ -790,6 +790,9 @@ TEST_CASE(
   options.retry_alternative = false;  // this case is about the untangling of one placement
   options.end_share_retry = 0.0;      // (nor the end-share retry,
   options.even_layers_ratio = 0.0;    // nor the meridian try)
+  // The areas as their bands' vertices (no points across the triangles), whose gaps shrink the
+  // cast end faces: the case whose free-ring attempt leaves folds.
+  options.attachments.max_point_spacing = 1.0;
   REQUIRE(options.untangle.containment_retry);
   REQUIRE_FALSE(options.untangle.containment_energy);
   const Decomposition d = decompose(soup, {}, options);
