@@ -193,9 +193,11 @@ Lattice build_lattice(const LatticeOptions& options) {
   lattice.edge_cell = lattice.nx > 2 && lattice.ny > 2 ? options.edge_cell : 1.0;
   const int n = lattice.point_count();
   lattice.system.positions.resize(n);
+  // A crossing family's lattice is the parallel one: the map of the cube its fibres are drawn through.
+  const TemplateKind shape = crosses_lattice(options.kind) ? TemplateKind::parallel : options.kind;
   for (int q = 0; q < n; ++q) {
     const Vec3 c = lattice_coordinates(lattice, q);
-    lattice.system.positions[static_cast<std::size_t>(q)] = template_point(options.kind, c.x(), c.y(), c.z());
+    lattice.system.positions[static_cast<std::size_t>(q)] = template_point(shape, c.x(), c.y(), c.z());
   }
   double volume = 0.0;
   for (int k = 0; k + 1 < lattice.nz; ++k)

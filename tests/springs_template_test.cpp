@@ -41,7 +41,7 @@ TEST_CASE("every template maps the unit cube into itself, from origin area to in
 
 TEST_CASE("template names parse and bad names are refused", "[springs][template]") {
   for (TemplateKind kind : all_template_kinds()) CHECK(parse_template_kind(template_name(kind)) == kind);
-  CHECK_THROWS_AS(parse_template_kind("bipennate"), OptionError);
+  CHECK_THROWS_AS(parse_template_kind("multipennate"), OptionError);
 }
 
 TEST_CASE("distinct lattice parameters give distinct template points", "[springs][template]") {
