@@ -164,7 +164,8 @@ class PointGrid {
 };
 
 /// The ends criterion for one area: `samples` even samples of the muscle surface within `radius`
-/// of an area point (drawn from the triangles that can reach it, area-weighted, seeded), and the
+/// of an area point (drawn from the triangles that can reach it, area-weighted, seeded), or of
+/// the area's own patch when it has one, and the
 /// share of them within one ideal end spacing sqrt(area / F) of one of the F `ends`.
 EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area, const std::vector<Vec3>& ends,
                          double radius, int samples, std::uint64_t seed) {
@@ -177,21 +178,27 @@ EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area,
   std::vector<double> cumulative;
   std::vector<char> whole;
   double total = 0.0;
-  for (std::size_t t = 0; t < muscle.triangles.size(); ++t) {
-    const Triangle& tri = muscle.triangles[t];
-    const Vec3& a = muscle.positions[static_cast<std::size_t>(tri[0])];
-    const Vec3& b = muscle.positions[static_cast<std::size_t>(tri[1])];
-    const Vec3& c = muscle.positions[static_cast<std::size_t>(tri[2])];
+  // An area with its own surface (patch) is sampled there, all of it; else the muscle's surface
+  // near the area's points.
+  const bool own = !area.patch.triangles.empty();
+  const TriangleMesh& surface = own ? area.patch : muscle;
+  for (std::size_t t = 0; t < surface.triangles.size(); ++t) {
+    const Triangle& tri = surface.triangles[t];
+    const Vec3& a = surface.positions[static_cast<std::size_t>(tri[0])];
+    const Vec3& b = surface.positions[static_cast<std::size_t>(tri[1])];
+    const Vec3& c = surface.positions[static_cast<std::size_t>(tri[2])];
     const Vec3 centre = (a + b + c) / 3.0;
     const double reach = std::max({(a - centre).norm(), (b - centre).norm(), (c - centre).norm()});
-    if (!near_area.any_within(centre, radius + reach)) continue;
-    total += 0.5 * (b - a).cross(c - a).norm();
+    if (!own && !near_area.any_within(centre, radius + reach)) continue;
+    const double triangle_area = 0.5 * (b - a).cross(c - a).norm();
+    if (own && !(triangle_area > 0.0)) continue;
+    total += triangle_area;
     candidates.push_back(static_cast<int>(t));
     cumulative.push_back(total);
     // A triangle whose three corners are near area points is the area's as a whole (a coarse
     // mesh's automatic band: its vertices are the area's points, its triangles large).
-    whole.push_back(near_area.any_within(a, radius) && near_area.any_within(b, radius) &&
-                    near_area.any_within(c, radius));
+    whole.push_back(own || (near_area.any_within(a, radius) && near_area.any_within(b, radius) &&
+                            near_area.any_within(c, radius)));
   }
   if (candidates.empty() || !(total > 0.0)) return out;
   std::mt19937_64 rng(seed);
@@ -202,11 +209,11 @@ EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area,
     const std::size_t n =
         static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin());
     const std::size_t pick_at = std::min(n, candidates.size() - 1);
-    const Triangle& tri = muscle.triangles[static_cast<std::size_t>(candidates[pick_at])];
+    const Triangle& tri = surface.triangles[static_cast<std::size_t>(candidates[pick_at])];
     const double u = std::sqrt(unit(rng)), v = unit(rng);
-    const Vec3 p = (1.0 - u) * muscle.positions[static_cast<std::size_t>(tri[0])] +
-                   u * (1.0 - v) * muscle.positions[static_cast<std::size_t>(tri[1])] +
-                   u * v * muscle.positions[static_cast<std::size_t>(tri[2])];
+    const Vec3 p = (1.0 - u) * surface.positions[static_cast<std::size_t>(tri[0])] +
+                   u * (1.0 - v) * surface.positions[static_cast<std::size_t>(tri[1])] +
+                   u * v * surface.positions[static_cast<std::size_t>(tri[2])];
     if (whole[pick_at] || near_area.any_within(p, radius)) kept.push_back(p);
   }
   out.samples = static_cast<int>(kept.size());

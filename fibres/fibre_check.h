@@ -35,7 +35,8 @@
 ///   30 and over 45 degrees (TurningFigures).
 /// - ends: the fibre ends must spread over their areas, not gather into a point. Each area's
 ///   surface (the surface within end_region_radius of the muscle length of an area point, and
-///   every triangle whose three corners are) is sampled evenly; the ideal end spacing is
+///   every triangle whose three corners are; or the area's own patch, AttachmentArea::patch, for
+///   an area inside the muscle) is sampled evenly; the ideal end spacing is
 ///   sqrt(area / F); the area's share is the fraction of its samples within one ideal end
 ///   spacing of a fibre end there. Pass when both shares are >= min_end_coverage (0.25): a grid
 ///   of F ends over the area covers all of it, ends over its middle half (by radius) about a

@@ -128,6 +128,7 @@ nlohmann::json AttachmentArea::to_json() const {
     j["end_fraction"] = end_fraction;
     j["end_pieces"] = end_pieces;
   }
+  if (!patch.triangles.empty()) j["patch_triangles"] = patch.triangles.size();
   return j;
 }
 

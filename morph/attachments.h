@@ -48,6 +48,10 @@ struct AttachmentArea {
   /// band of end_fraction had (1 for a simple end). 0 for landmark areas.
   double end_fraction = 0.0;
   int end_pieces = 0;
+  /// When not empty, the area's own surface: an area that is not a piece of the muscle's surface
+  /// (an aponeurosis inside the muscle, drawn by fibres/pennate_fibres.h). The check's ends
+  /// criterion samples it instead of the muscle's surface near the points (default empty).
+  TriangleMesh patch;
   /// Mean position of the points on the surface (mesh units).
   Vec3 centroid() const;
   /// Whether `x` lies within `radius` (mesh units) of one of the points: a fibre end placed there
