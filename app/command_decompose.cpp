@@ -210,7 +210,11 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--fe-cells", args->fe_cells, "About this many tetrahedra in --fe-mesh")->capture_default_str();
   cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
-  cmd->add_option("--template", args->kind, "Fibre template: parallel, pennate, curved, fanned, rectus")
+  cmd->add_option("--template", args->kind,
+                  "Fibre template: parallel, pennate, curved, fanned, rectus, unipennate, bipennate")
+      ->capture_default_str();
+  cmd->add_option("--pennation", o.pennate.pennation_deg,
+                  "unipennate and bipennate: mean angle of the fibres to the line of action, degrees")
       ->capture_default_str();
   cmd->add_option("--fibres", o.fibres, "Number of fibres (split near-square)")->capture_default_str();
   cmd->add_option("--resolution", o.resolution, "Points per fibre")->capture_default_str();
@@ -401,7 +405,7 @@ void add_decompose_command(CLI::App& app) {
         {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh", "--keep-failed",
          "--check-options"}},
        {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
-       {"Template and fibres", {"--template", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
+       {"Template and fibres", {"--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
        {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
       "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
   cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");

@@ -408,6 +408,7 @@ CheckOptions DecomposeOptions::default_check() {
 
 void DecomposeOptions::validate() const {
   architecture.validate();
+  pennate.validate();
   sphere.validate();
   attachments.validate();
   strip.validate();
@@ -466,6 +467,7 @@ nlohmann::json DecomposeReport::to_json() const {
   j["settle"] = settle;
   j["containment"] = containment;
   j["untangle"] = untangle;
+  j["pennate"] = pennate;
   j["quality"] = quality.to_json();
   j["architecture"] = architecture.to_json();
   j["attempts"] = attempts;
@@ -778,6 +780,33 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Check.
   stage_started("check");
   stage = Clock::now();
+  if (springs::crosses_lattice(options.kind)) {
+    // A crossing template's fibres are drawn through the lattice once it is settled: the lattice
+    // must be a map (no folded cell, every point inside), and the fibres pass the check against
+    // the areas they span. The architecture's line of action stays that of the end areas.
+    CheckOptions map_check = options.check;  // only its cells and points matter here
+    map_check.coverage_samples = 100;
+    map_check.end_samples = 100;
+    const CheckReport map_quality = check_fibres(out.fibres, muscle, query, checked_against, map_check);
+    const Vec3 line = checked_against.insertion.centroid() - checked_against.origin.centroid();
+    PennateFibres drawn = pennate_fibres(options.kind, lattice, system.positions, options.fibres, options.resolution,
+                                         line, query, options.pennate);
+    report.pennate = drawn.report.to_json();
+    report.pennate["map"] = {{"inverted_cells", map_quality.inverted_cells},
+                             {"inside_fraction", map_quality.inside_fraction}};
+    out.fibres = std::move(drawn.fibres);
+    report.quality = check_fibres(out.fibres, muscle, query, drawn.areas, options.check);
+    if (map_quality.inverted_cells > 0 || map_quality.inside_fraction < options.check.min_inside_fraction) {
+      report.quality.pass = false;
+      report.quality.failed.push_back("map");
+    }
+    report.architecture = measure_architecture(out.fibres, muscle, checked_against, options.architecture);
+    report.check_seconds = since(stage);
+    report.status = report.quality.pass ? "ok" : "failed";
+    if (!report.quality.pass) report.failure = "the fibres fail the quality check";
+    report.seconds = since(start);
+    return out;
+  }
   report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
   // Step 11's moves guard the points, the segments and the cells, not the coverage (a global
   // figure): when the result fails and the fibres before the moves pass, those are kept.

@@ -44,6 +44,7 @@
 #include "fibres/contain_segments.h"
 #include "fibres/fibre_check.h"
 #include "fibres/landmark_strip.h"
+#include "fibres/pennate_fibres.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
@@ -81,6 +82,9 @@ struct DecomposeOptions {
   StripOptions strip;
   PlacementOptions placement;                                    ///< regions and alignment on the sphere
   springs::TemplateKind kind = springs::TemplateKind::parallel;  ///< template (default parallel)
+  /// Crossing templates (unipennate, bipennate): the pennation their fibres are drawn with through
+  /// the settled lattice (fibres/pennate_fibres.h; default 13.2 degrees).
+  PennateOptions pennate;
   int fibres = 100;                                           ///< fibres output, >= 4, split near-square (default 100)
   int resolution = 15;                                        ///< points per fibre, >= 2 (default 15)
   springs::SpringModel model = springs::SpringModel::model6;  ///< springs (default model-6)
@@ -188,6 +192,9 @@ struct DecomposeReport {
   std::string status;   ///< "ok" or "failed" (the quality check failed)
   std::string failure;  ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle;
+  /// Crossing templates only (else null): how the pennate fibres were drawn (PennateReport) and the
+  /// check of the lattice they were drawn through (`map`: pass, failed, inverted cells, inside).
+  nlohmann::json pennate;
   CheckReport quality;
   Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)
   /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
