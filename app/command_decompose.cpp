@@ -5,6 +5,7 @@
 #include "app/commands.h"
 #include "app/report_file.h"
 #include "fibres/decompose_mesh.h"
+#include "fibres/muscle_presets.h"
 #include "fibres/fibre_field.h"
 #include "repair/tetrahedralize.h"
 #include "geometry/mesh_stats.h"
@@ -34,6 +35,7 @@ struct DecomposeArgs {
   std::string rest = "tension", quality = "standard";
   const CLI::App* command = nullptr;  // for which options were given explicitly
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
+  std::string muscle;  // --muscle: a preset by anatomical name (fibres/muscle_presets.h)
   int model = 6;
   bool keep_failed = false, check_options = false;
   std::vector<std::string> landmark_twists;  // --landmark-twists: degrees, or "none"; empty: default
@@ -52,6 +54,13 @@ void run_decompose(const DecomposeArgs& args) {
     options.check.coverage_samples = level.check.coverage_samples;
   }
   options.kind = springs::parse_template_kind(args.kind);
+  // --muscle sets the template and pennation of its preset, except those given explicitly.
+  if (!args.muscle.empty()) {
+    const MusclePreset& preset = muscle_preset(args.muscle);
+    const auto given = [&](const char* name) { return args.command != nullptr && args.command->count(name) > 0; };
+    if (!given("--template")) options.kind = preset.kind;
+    if (!given("--pennation")) options.pennate.pennation_deg = preset.pennation_deg;
+  }
   options.model = springs::parse_spring_model(args.model);
   options.settle.solver = springs::parse_solver_kind(args.solver);
   options.sphere.method = sphere_method_from_string(args.sphere_method);
@@ -122,6 +131,13 @@ void run_decompose(const DecomposeArgs& args) {
     landmarks.insertion_source = args.insertion;
   }
   nlohmann::json report = {{"input_file", args.input}, {"output_file", args.output}};
+  if (!args.muscle.empty()) {
+    const MusclePreset& preset = muscle_preset(args.muscle);
+    report["muscle"] = {{"name", preset.name},
+                        {"template", springs::template_name(options.kind)},
+                        {"pennation_deg", options.pennate.pennation_deg},
+                        {"arrangement", preset.arrangement}};
+  }
   // On a terminal, each stage as it starts on one line of stderr (-q: errors only, so none).
   const bool terminal = isatty(2) != 0 && spdlog::get_level() <= spdlog::level::info;
   const auto started = std::chrono::steady_clock::now();
@@ -213,6 +229,9 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--template", args->kind,
                   "Fibre template: parallel, pennate, curved, fanned, rectus, unipennate, bipennate")
       ->capture_default_str();
+  cmd->add_option("--muscle", args->muscle,
+                  "Anatomical name (snake_case, as vastus_lateralis): its template and pennation (Ward et al. 2009) "
+                  "unless --template or --pennation are given");
   cmd->add_option("--pennation", o.pennate.pennation_deg,
                   "unipennate and bipennate: mean angle of the fibres to the line of action, degrees")
       ->capture_default_str();
@@ -405,7 +424,7 @@ void add_decompose_command(CLI::App& app) {
         {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh", "--keep-failed",
          "--check-options"}},
        {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
-       {"Template and fibres", {"--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
+       {"Template and fibres", {"--muscle", "--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
        {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
       "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
   cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");

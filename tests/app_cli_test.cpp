@@ -181,6 +181,33 @@ TEST_CASE("repair and convert succeed on good input with a complete report", "[a
   }
 }
 
+TEST_CASE("decompose --muscle takes its preset's template and pennation; explicit options win", "[app]") {
+  test::TempDir dir;
+  REQUIRE(run(dir, "sample --kind muscle --clean -o '" + dir.file("muscle.off") + "'").code == 0);
+  const std::string input = "--quiet decompose '" + dir.file("muscle.off") + "' -o '" + dir.file("f.vtk") + "'";
+  // An unknown name: one line naming the presets, the option error's exit code, no output.
+  const Run bad = run(dir, input + " --muscle vastus_lateral");
+  CHECK(bad.code == exit_code(ErrorCode::invalid_option));
+  CHECK(std::count(bad.err.begin(), bad.err.end(), '\n') == 1);
+  CHECK(bad.err.find("vastus_lateralis") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir.file("f.vtk")));
+  const auto report_of = [&](const std::string& extra) {
+    const Run r = run(dir, input + " --report '" + dir.file("r.json") + "' " + extra);
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+    std::ifstream in(dir.file("r.json"));
+    return nlohmann::json::parse(in);
+  };
+  const nlohmann::json preset = report_of("--muscle vastus_lateralis");
+  CHECK(preset.at("muscle").at("name") == "vastus_lateralis");
+  CHECK(preset.at("lattice").at("template") == "unipennate");
+  CHECK(preset.at("pennate").at("target_deg") == 18.4);
+  const nlohmann::json given = report_of("--muscle vastus_lateralis --template bipennate --pennation 25");
+  CHECK(given.at("lattice").at("template") == "bipennate");
+  CHECK(given.at("pennate").at("target_deg") == 25.0);
+  CHECK(given.at("muscle").at("pennation_deg") == 25.0);
+}
+
 TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   test::TempDir dir;
   REQUIRE(run(dir, "sample --kind capsule -o '" + dir.file("capsule.off") + "'").code == 0);

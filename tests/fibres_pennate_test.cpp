@@ -1,7 +1,9 @@
-// Pennate fibres drawn through the settled lattice (fibres/pennate_fibres.h): on a flat capsule
-// whose thickness is known, the fibres cross its thin direction at the requested pennation and
-// are as long as its thickness gives.
+// Pennate fibres drawn through the settled lattice (fibres/pennate_fibres.h) and the presets by
+// anatomical name (fibres/muscle_presets.h): on a flat capsule whose thickness is known, the
+// fibres cross its thin direction at the requested pennation and are as long as its thickness
+// gives; the presets hold Ward et al. 2009's pennations.
 #include "fibres/decompose.h"
+#include "fibres/muscle_presets.h"
 #include "geometry/errors.h"
 #include "geometry/primitives.h"
 #include "tests/test_common.h"
@@ -133,4 +135,40 @@ TEST_CASE("pennate fibres: bad options are refused before the work", "[fibres][p
   options.pennate.pennation_deg = 20.0;
   options.pennate.area_density = 0;
   CHECK_THROWS_AS(options.validate(), OptionError);
+}
+
+TEST_CASE("muscle presets: names and templates", "[fibres][pennate]") {
+  CHECK(muscle_preset("vastus_lateralis").kind == springs::TemplateKind::unipennate);
+  CHECK(muscle_preset("rectus_femoris").kind == springs::TemplateKind::bipennate);
+  CHECK(muscle_preset("sartorius").kind == springs::TemplateKind::parallel);
+  try {
+    muscle_preset("vastus_lateral");
+    FAIL("an unknown name is refused");
+  } catch (const OptionError& e) {
+    CHECK(std::string(e.what()).find("vastus_lateralis") != std::string::npos);  // the names are listed
+  }
+}
+
+TEST_CASE("muscle presets hold the pennations of ward2009.csv, one per row", "[fibres][pennate][corpus]") {
+  const std::string table = std::string(FASCICLE_DATA_DIR) + "/architecture/ward2009.csv";
+  std::ifstream in(table);
+  if (!in) {
+    WARN("skipped: " << table << " not found (the presets' pennations are compared with it)");
+    return;
+  }
+  std::string line;
+  std::getline(in, line);  // header: muscle,fibre_length_cm,fibre_length_sd_cm,pennation_deg,...
+  int rows = 0;
+  while (std::getline(in, line)) {
+    std::stringstream fields(line);
+    std::string name, length, length_sd, pennation;
+    std::getline(fields, name, ',');
+    std::getline(fields, length, ',');
+    std::getline(fields, length_sd, ',');
+    std::getline(fields, pennation, ',');
+    INFO(name);
+    CHECK(muscle_preset(name).pennation_deg == Approx(std::stod(pennation)));
+    ++rows;
+  }
+  CHECK(rows == static_cast<int>(muscle_presets().size()));
 }
