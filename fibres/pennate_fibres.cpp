@@ -3,6 +3,7 @@
 
 #include "fibres/pennate_fibres.h"
 
+#include "fibres/fibre_check.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 
@@ -130,6 +131,10 @@ void PennateOptions::validate() const {
   }
   if (area_density < 1)
     throw OptionError("PennateOptions::area_density must be >= 1 (got " + std::to_string(area_density) + ")");
+  if (smoothing_steps < 0 || smoothing_steps > 10000)
+    throw OptionError("PennateOptions::smoothing_steps must be in 0..10000 (got " + std::to_string(smoothing_steps) + ")");
+  if (!(smoothing_weight > 0.0 && smoothing_weight <= 1.0))
+    throw OptionError("PennateOptions::smoothing_weight must be in (0, 1] (got " + std::to_string(smoothing_weight) + ")");
 }
 
 nlohmann::json PennateReport::to_json() const {
@@ -137,7 +142,8 @@ nlohmann::json PennateReport::to_json() const {
           {"advance", advance},               {"unreached_sheets", unreached},
           {"mirrored", mirrored},             {"diagonal_ratio", diagonal_ratio},
           {"fibres", fibres},                 {"projected_ends", projected_ends},
-          {"reflected_points", reflected_points},
+          {"reflected_points", reflected_points},  {"smoothing_refused", smoothing_refused},
+          {"smoothing_reduced", smoothing_reduced},
           {"origin_points", origin_points},   {"insertion_points", insertion_points}};
 }
 
@@ -175,36 +181,37 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
     c.z() = z_lo + (z_hi - z_lo) * c.z();
     return map.fitted(c, query);
   };
-  const double reach = bounding_box(positions).diagonal();
 
   const std::array<int, 2> split = springs::near_square_split(fibre_count);
   const int nr = split[0], ns = split[1];
-  auto r_of = [&](int i) { return (i + 0.5) / nr; };
+  // Rows along the muscle, staggered by half a row from sheet to sheet (a hexagonal packing: the
+  // rows of neighbouring sheets fill each other's gaps).
+  auto r_of = [&](int i, int j) { return (i + 0.25 + 0.5 * (j % 2)) / nr; };
   // The outermost sheets pass through the lattice's corner lines (its first inner line in both
   // directions): nearer the thin edges a chord runs inside the corner cells, along the surface.
   const double inner = springs::lattice_coordinates(lattice, lattice.index(1, 1, 0)).x();
   auto s_of = [&](int j) { return inner + (1.0 - 2.0 * inner) * j / (ns - 1); };
 
   // Each sheet's advance: the mean pennation of its fibres falls as the advance grows.
-  auto sheet_angle = [&](double advance, double s) {
+  auto sheet_angle = [&](double advance, double s, int sheet) {
     double sum = 0.0;
-    for (int i = 0; i < nr; ++i) sum += angle_deg(muscle_point(advance, r_of(i), s, 1.0) - muscle_point(advance, r_of(i), s, 0.0), line);
+    for (int i = 0; i < nr; ++i) sum += angle_deg(muscle_point(advance, r_of(i, sheet), s, 1.0) - muscle_point(advance, r_of(i, sheet), s, 0.0), line);
     return sum / nr;
   };
   for (int j = 0; j < ns; ++j) {
     const double s = s_of(j);
     double lo = std::log(kAdvanceLo), hi = std::log(kAdvanceHi);
     double advance = 0.0;
-    if (sheet_angle(kAdvanceLo, s) <= options.pennation_deg) {
+    if (sheet_angle(kAdvanceLo, s, j) <= options.pennation_deg) {
       advance = kAdvanceLo;
       ++report.unreached;
-    } else if (sheet_angle(kAdvanceHi, s) >= options.pennation_deg) {
+    } else if (sheet_angle(kAdvanceHi, s, j) >= options.pennation_deg) {
       advance = kAdvanceHi;
       ++report.unreached;
     } else {
       for (int b = 0; b < kBisections; ++b) {
         const double mid = 0.5 * (lo + hi);
-        (sheet_angle(std::exp(mid), s) > options.pennation_deg ? lo : hi) = mid;
+        (sheet_angle(std::exp(mid), s, j) > options.pennation_deg ? lo : hi) = mid;
       }
       advance = std::exp(0.5 * (lo + hi));
     }
@@ -223,8 +230,8 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
   // A fibre end (t = 0 or 1) on the cube's faces goes where its fibre, continued straight from its
   // two inner points next to it, leaves the muscle (no hook: the cells next to a cast end face can
   // be sheared, and the template's own end point there can lie behind its neighbour); where that
-  // ray meets no surface (it starts inside, so only through round-off), to the closest surface
-  // point of the template's end. An end on the central sheet stays where the map puts it.
+  // ray meets no surface within the fibre's length, to the closest surface point of the
+  // template's end. An end on the central sheet stays where the map puts it.
   const double dt = 1.0 / (resolution - 1);
   auto end_point = [&](double advance, double r, double s, int end) {
     const double t = end == 0 ? 0.0 : 1.0;
@@ -240,21 +247,64 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
       const Vec3 neighbour = inner_point(advance, r, s, t + sign * dt, false);
       const Vec3 along = neighbour - inner_point(advance, r, s, t + 2.0 * sign * dt, false);
       Vec3 hit;
+      // At most the fibre's own length on: a ray that grazes the surface would run on far.
+      const double reach = (muscle_point(advance, r, s, 1.0) - muscle_point(advance, r, s, 0.0)).norm();
       if (along.norm() > 0.0 && query.first_hit(neighbour, along.normalized(), reach, hit))
         return query.closest_point(hit);
     }
     return query.closest_point(p);
   };
+  // The check's default tolerances, for the smoothing's segment test (fibre ends lie on the surface).
+  const CheckOptions check;
+  const double diagonal = bounding_box(positions).diagonal(), end_tolerance = check.end_tolerance * diagonal;
   double angle_sum = 0.0;
   for (int j = 0; j < ns; ++j)
     for (int i = 0; i < nr; ++i) {
-      const double a = report.advance[static_cast<std::size_t>(j)], r = r_of(i), s = s_of(j);
+      const double a = report.advance[static_cast<std::size_t>(j)], r = r_of(i, j), s = s_of(j);
       std::vector<Vec3> points(static_cast<std::size_t>(resolution));
       for (int k = 1; k + 1 < resolution; ++k) points[static_cast<std::size_t>(k)] = inner_point(a, r, s, k * dt, true);
       points.front() = end_point(a, r, s, 0).position;
       points.back() = end_point(a, r, s, 1).position;
       if (on_cube_surface(springs::pennate_point(kind, a, r, s, 0.0))) ++report.projected_ends;
       if (on_cube_surface(springs::pennate_point(kind, a, r, s, 1.0))) ++report.projected_ends;
+      // Smoothing keeps the points inside; where it straightens a fibre across a concave stretch
+      // so that a segment leaves the muscle, the fibre takes the most smoothing (half the steps,
+      // again and again) that keeps every segment inside.
+      const int segments = static_cast<int>(points.size()) - 1;
+      auto smoothed = [&](int steps) {
+        std::vector<Vec3> line_points = points;
+        for (int step = 0; step < steps; ++step)
+          for (std::size_t k = 1; k + 1 < line_points.size(); ++k) {
+            const Vec3 moved = line_points[k] + options.smoothing_weight *
+                                                    (0.5 * (line_points[k - 1] + line_points[k + 1]) - line_points[k]);
+            if (query.inside(moved)) {
+              line_points[k] = moved;
+            } else {
+              ++report.smoothing_refused;
+            }
+          }
+        return line_points;
+      };
+      // Leaves as the check judges it: the surface cuts a segment and a sample of it lies outside
+      // by more than the check's segment tolerance.
+      auto leaves = [&](const std::vector<Vec3>& line_points) {
+        for (int k = 0; k < segments; ++k)
+          if (fibre_segment_leaves(query, line_points[k], line_points[k + 1], k, segments, end_tolerance) &&
+              segment_excursion(query, line_points[k], line_points[k + 1], check.excursion_samples) >
+                  check.segment_tolerance * diagonal)
+            return true;
+        return false;
+      };
+      // (When the fibre leaves the muscle unsmoothed too, smoothing loses nothing: all steps.)
+      const bool left_before = options.smoothing_steps > 0 && leaves(points);
+      for (int steps = options.smoothing_steps; steps > 0; steps /= 2) {
+        std::vector<Vec3> candidate = smoothed(steps);
+        if (left_before || !leaves(candidate)) {
+          points = std::move(candidate);
+          break;
+        }
+        ++report.smoothing_reduced;
+      }
       angle_sum += angle_deg(points.back() - points.front(), line);
       out.fibres.lines.push_back(std::move(points));
     }

@@ -28,7 +28,8 @@
 ///   (no hook), so the fibres cut by the end faces reach the ends straight. Ends on the central
 ///   sheet stay inside. An inner point the trilinear cells still put outside (they can bulge out
 ///   of a concave stretch of surface between their corners) is reflected in its closest surface
-///   point.
+///   point. Then each fibre is smoothed along itself (PennateOptions::smoothing_steps), its ends
+///   held and every point kept inside.
 /// - Areas. The origin area is the set of all fibre starts (the aponeurosis and the part of the
 ///   origin end the cut fibres start on), sampled densely on an (r, s) grid and placed as the
 ///   fibres' ends are, the insertion area the set of all fibre ends; each carries that grid as its
@@ -53,6 +54,13 @@ struct PennateOptions {
   /// Samples of each area along r and along s, per fibre spacing, >= 1 (default 8: area points a
   /// fraction of an end spacing apart, so that the check's distances to the areas are the ends' own).
   int area_density = 8;
+  /// Smoothing along each fibre (the thesis's filter: steps and a weight), ends held, a move that
+  /// would take a point out of the muscle not made, and a fibre whose segments it would take out
+  /// smoothed with half the steps, again and again: the map's cells bend at their faces, and a
+  /// crooked corner cell kinks the fibres through it. Steps >= 0 (default 10), weight in (0, 1]
+  /// (default 0.5: each inner point moves half way to its neighbours' midpoint per step).
+  int smoothing_steps = 10;
+  double smoothing_weight = 0.5;
   /// Throws OptionError naming the first field out of range.
   void validate() const;
 };
@@ -67,6 +75,8 @@ struct PennateReport {
   double diagonal_ratio = 0.0;        ///< middle layer: short diagonal over long diagonal
   long fibres = 0, projected_ends = 0;  ///< fibres drawn, ends moved onto the surface
   long reflected_points = 0;            ///< inner points found outside, reflected inside
+  long smoothing_refused = 0;           ///< smoothing moves not made (the point would leave the muscle)
+  long smoothing_reduced = 0;           ///< times a fibre's smoothing steps were halved (a segment left)
   long origin_points = 0, insertion_points = 0;  ///< area samples
   nlohmann::json to_json() const;
 };
