@@ -37,6 +37,9 @@
 /// 10. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances (and the segments that leave the muscle, reported).
+/// With a crossing template (unipennate, bipennate) the lattice is the parallel one and step 10's
+/// fibres are drawn through it instead (fibres/pennate_fibres.h), checked against the areas they
+/// span, the lattice judged as a map (no folded cell, every point inside).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
 #include "fibres/align_ends.h"

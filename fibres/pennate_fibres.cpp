@@ -220,12 +220,19 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
 
   // A fibre point: the fitted map, an inner point found outside reflected in its closest surface
   // point (the trilinear cells next to a concave stretch of surface can bulge out of it between
-  // their corners), as deep inside as it was outside.
+  // their corners).
   auto inner_point = [&](double advance, double r, double s, double t, bool count) {
     Vec3 p = muscle_point(advance, r, s, t);
     if (query.inside(p)) return p;
     if (count) ++report.reflected_points;
-    return Vec3(2.0 * query.closest_point(p).position - p);
+    // Reflected: as deep inside as it was outside, or, where the muscle is thinner than that,
+    // half, a quarter, ... as deep.
+    const Vec3 closest = query.closest_point(p).position;
+    for (double depth = 1.0; depth > 1e-3; depth *= 0.5) {
+      const Vec3 q = closest + depth * (closest - p);
+      if (query.inside(q)) return q;
+    }
+    return p;
   };
   // A fibre end (t = 0 or 1) on the cube's faces goes where its fibre, continued straight from its
   // two inner points next to it, leaves the muscle (no hook: the cells next to a cast end face can
@@ -277,7 +284,9 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
           for (std::size_t k = 1; k + 1 < line_points.size(); ++k) {
             const Vec3 moved = line_points[k] + options.smoothing_weight *
                                                     (0.5 * (line_points[k - 1] + line_points[k + 1]) - line_points[k]);
-            if (query.inside(moved)) {
+            // A point inside stays inside; one still outside (a reflection that landed outside
+            // again, in a thin fold of the surface) moves towards its neighbours in any case.
+            if (query.inside(moved) || !query.inside(line_points[k])) {
               line_points[k] = moved;
             } else {
               ++report.smoothing_refused;
