@@ -800,24 +800,19 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       report.quality.pass = false;
       report.quality.failed.push_back("map");
     }
-    report.architecture = measure_architecture(out.fibres, muscle, checked_against, options.architecture);
-    report.check_seconds = since(stage);
-    report.status = report.quality.pass ? "ok" : "failed";
-    if (!report.quality.pass) report.failure = "the fibres fail the quality check";
-    report.seconds = since(start);
-    return out;
-  }
-  report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
-  // Step 11's moves guard the points, the segments and the cells, not the coverage (a global
-  // figure): when the result fails and the fibres before the moves pass, those are kept.
-  if (!report.quality.pass && segments_moved > 0) {
-    Polylines unmoved = fibres_of(before_segments);
-    CheckReport unmoved_quality = check_fibres(unmoved, muscle, query, checked_against, options.check);
-    if (unmoved_quality.pass) {
-      out.fibres = std::move(unmoved);
-      report.quality = std::move(unmoved_quality);
-      report.containment["segments"]["reverted"] = true;
-      report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
+  } else {
+    report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
+    // Step 11's moves guard the points, the segments and the cells, not the coverage (a global
+    // figure): when the result fails and the fibres before the moves pass, those are kept.
+    if (!report.quality.pass && segments_moved > 0) {
+      Polylines unmoved = fibres_of(before_segments);
+      CheckReport unmoved_quality = check_fibres(unmoved, muscle, query, checked_against, options.check);
+      if (unmoved_quality.pass) {
+        out.fibres = std::move(unmoved);
+        report.quality = std::move(unmoved_quality);
+        report.containment["segments"]["reverted"] = true;
+        report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
+      }
     }
   }
   report.architecture = measure_architecture(out.fibres, muscle, checked_against, options.architecture);
