@@ -124,8 +124,7 @@ void run_settle(const SettleArgs& args) {
   request.polish = args.gpu_polish;
   const std::unique_ptr<springs::ComputeBackend> backend = springs::make_compute_backend(request);
   const std::string compute = backend->name(), reason = backend->reason();
-  if (compute == "cpu" && args.backend == "auto" && reason.find("no OpenGL context") != std::string::npos)
-    spdlog::warn("backend auto: no OpenGL context; using the CPU");
+  if (backend->fell_back()) spdlog::warn("backend auto: no OpenGL context; using the CPU");
   spdlog::info("backend {}: {}", compute, reason);
   nlohmann::json gpu_info = nullptr;
   springs::SettleReport report;

@@ -18,9 +18,11 @@ namespace {
 
 class CpuBackend final : public ComputeBackend {
  public:
-  explicit CpuBackend(std::string reason) : reason_(std::move(reason)) {}
+  explicit CpuBackend(std::string reason, bool fell_back = false)
+      : reason_(std::move(reason)), fell_back_(fell_back) {}
   std::string name() const override { return "cpu"; }
   std::string reason() const override { return reason_; }
+  bool fell_back() const override { return fell_back_; }
   ComputeDevice device() const override { return {}; }
   SettleReport settle(SpringSystem& system, const SettleOptions& options, const LatticeShape* shape,
                       GpuSettleFigures*) override {
@@ -29,6 +31,7 @@ class CpuBackend final : public ComputeBackend {
 
  private:
   std::string reason_;
+  bool fell_back_ = false;
 };
 
 #ifdef FASCICLE_HAVE_SHADERS
@@ -77,11 +80,10 @@ std::unique_ptr<ComputeBackend> make_compute_backend(const ComputeRequest& reque
   if (choice.backend == "cpu") return std::make_unique<CpuBackend>(choice.reason);
   try {
     return std::make_unique<GlBackend>(request, choice.backend, choice.reason);
-  } catch (const shaders::GpuError& e) {
+  } catch (const shaders::GpuError&) {
     // auto promised nothing: without a context the CPU settles, and the reason says why.
     if (request.name != "auto") throw;
-    (void)e;
-    return std::make_unique<CpuBackend>(choice.reason + "; no OpenGL context, fell back to cpu");
+    return std::make_unique<CpuBackend>(choice.reason + "; no OpenGL context, fell back to cpu", true);
   }
 }
 #else

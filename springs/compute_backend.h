@@ -51,6 +51,9 @@ class ComputeBackend {
   virtual std::string name() const = 0;
   /// One line: why this backend (the request, or what auto found).
   virtual std::string reason() const = 0;
+  /// Whether auto chose a GPU backend and fell back to the CPU because no OpenGL context could be
+  /// made (callers warn about it).
+  virtual bool fell_back() const { return false; }
   /// The device, for reports.
   virtual ComputeDevice device() const = 0;
   /// Settles `system` in place as springs::settle() does; `gpu`, when given, receives a GPU

@@ -64,6 +64,9 @@ TEST_CASE("auto settles on the cpu where a gpu would not pay, and says why", "[s
   const auto small = make_compute_backend(request);
   CHECK(small->name() == "cpu");
   if (gpu_backends_built()) CHECK(small->reason().find("below") != std::string::npos);
+  // Chosen for the settle's size, not a fall-back for want of a context.
+  CHECK_FALSE(backend->fell_back());
+  CHECK_FALSE(small->fell_back());
 }
 
 TEST_CASE("an unknown backend name is an option error", "[springs][compute]") {
