@@ -189,7 +189,9 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
   auto r_of = [&](int i, int j) { return (i + 0.25 + 0.5 * (j % 2)) / nr; };
   // The outermost sheets pass through the lattice's corner lines (its first inner line in both
   // directions): nearer the thin edges a chord runs inside the corner cells, along the surface.
-  const double inner = springs::lattice_coordinates(lattice, lattice.index(1, 1, 0)).x();
+  // (With nx != ny the corner line is (x1, y1), on the chord X + Y = x1 + y1.)
+  const Vec3 corner_line = springs::lattice_coordinates(lattice, lattice.index(1, 1, 0));
+  const double inner = 0.5 * (corner_line.x() + corner_line.y());
   auto s_of = [&](int j) { return inner + (1.0 - 2.0 * inner) * j / (ns - 1); };
 
   // Each sheet's advance: the mean pennation of its fibres falls as the advance grows.
