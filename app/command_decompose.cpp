@@ -424,7 +424,8 @@ void add_decompose_command(CLI::App& app) {
         {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh", "--keep-failed",
          "--check-options"}},
        {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
-       {"Template and fibres", {"--muscle", "--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
+       {"Template and fibres",
+        {"--muscle", "--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},
        {"Quality and speed", {"--quality", "--backend", "--tolerance"}}},
       "Advanced (the method's knobs; defaults are measured on the corpus, docs/decompose.md)");
   cmd->footer(show_all_options() ? "" : "Advanced options: fascicle decompose --help-all");

@@ -196,7 +196,7 @@ struct DecomposeReport {
   std::string failure;  ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle;
   /// Crossing templates only (else null): how the pennate fibres were drawn (PennateReport) and the
-  /// check of the lattice they were drawn through (`map`: pass, failed, inverted cells, inside).
+  /// check of the lattice they were drawn through (`map`: inverted_cells, inside_fraction).
   nlohmann::json pennate;
   CheckReport quality;
   Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)

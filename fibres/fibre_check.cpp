@@ -197,8 +197,8 @@ EndCoverage end_coverage(const TriangleMesh& muscle, const AttachmentArea& area,
     cumulative.push_back(total);
     // A triangle whose three corners are near area points is the area's as a whole (a coarse
     // mesh's automatic band: its vertices are the area's points, its triangles large).
-    whole.push_back(own || (near_area.any_within(a, radius) && near_area.any_within(b, radius) &&
-                            near_area.any_within(c, radius)));
+    whole.push_back(
+        own || (near_area.any_within(a, radius) && near_area.any_within(b, radius) && near_area.any_within(c, radius)));
   }
   if (candidates.empty() || !(total > 0.0)) return out;
   std::mt19937_64 rng(seed);

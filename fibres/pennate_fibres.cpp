@@ -27,9 +27,12 @@ class LatticeMap {
  public:
   LatticeMap(const springs::Lattice& lattice, const std::vector<Vec3>& positions)
       : lattice_(lattice), positions_(positions) {
-    for (int i = 0; i < lattice.nx; ++i) xs_.push_back(springs::lattice_coordinates(lattice, lattice.index(i, 0, 0)).x());
-    for (int j = 0; j < lattice.ny; ++j) ys_.push_back(springs::lattice_coordinates(lattice, lattice.index(0, j, 0)).y());
-    for (int k = 0; k < lattice.nz; ++k) zs_.push_back(springs::lattice_coordinates(lattice, lattice.index(0, 0, k)).z());
+    for (int i = 0; i < lattice.nx; ++i)
+      xs_.push_back(springs::lattice_coordinates(lattice, lattice.index(i, 0, 0)).x());
+    for (int j = 0; j < lattice.ny; ++j)
+      ys_.push_back(springs::lattice_coordinates(lattice, lattice.index(0, j, 0)).y());
+    for (int k = 0; k < lattice.nz; ++k)
+      zs_.push_back(springs::lattice_coordinates(lattice, lattice.index(0, 0, k)).z());
   }
 
   Vec3 at(const Vec3& c) const {
@@ -132,19 +135,27 @@ void PennateOptions::validate() const {
   if (area_density < 1)
     throw OptionError("PennateOptions::area_density must be >= 1 (got " + std::to_string(area_density) + ")");
   if (smoothing_steps < 0 || smoothing_steps > 10000)
-    throw OptionError("PennateOptions::smoothing_steps must be in 0..10000 (got " + std::to_string(smoothing_steps) + ")");
+    throw OptionError("PennateOptions::smoothing_steps must be in 0..10000 (got " + std::to_string(smoothing_steps) +
+                      ")");
   if (!(smoothing_weight > 0.0 && smoothing_weight <= 1.0))
-    throw OptionError("PennateOptions::smoothing_weight must be in (0, 1] (got " + std::to_string(smoothing_weight) + ")");
+    throw OptionError("PennateOptions::smoothing_weight must be in (0, 1] (got " + std::to_string(smoothing_weight) +
+                      ")");
 }
 
 nlohmann::json PennateReport::to_json() const {
-  return {{"target_deg", target_deg},         {"mean_deg", mean_deg},
-          {"advance", advance},               {"unreached_sheets", unreached},
-          {"mirrored", mirrored},             {"diagonal_ratio", diagonal_ratio},
-          {"fibres", fibres},                 {"projected_ends", projected_ends},
-          {"reflected_points", reflected_points},  {"smoothing_refused", smoothing_refused},
+  return {{"target_deg", target_deg},
+          {"mean_deg", mean_deg},
+          {"advance", advance},
+          {"unreached_sheets", unreached},
+          {"mirrored", mirrored},
+          {"diagonal_ratio", diagonal_ratio},
+          {"fibres", fibres},
+          {"projected_ends", projected_ends},
+          {"reflected_points", reflected_points},
+          {"smoothing_refused", smoothing_refused},
           {"smoothing_reduced", smoothing_reduced},
-          {"origin_points", origin_points},   {"insertion_points", insertion_points}};
+          {"origin_points", origin_points},
+          {"insertion_points", insertion_points}};
 }
 
 PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice& lattice,
@@ -197,7 +208,9 @@ PennateFibres pennate_fibres(springs::TemplateKind kind, const springs::Lattice&
   // Each sheet's advance: the mean pennation of its fibres falls as the advance grows.
   auto sheet_angle = [&](double advance, double s, int sheet) {
     double sum = 0.0;
-    for (int i = 0; i < nr; ++i) sum += angle_deg(muscle_point(advance, r_of(i, sheet), s, 1.0) - muscle_point(advance, r_of(i, sheet), s, 0.0), line);
+    for (int i = 0; i < nr; ++i)
+      sum += angle_deg(muscle_point(advance, r_of(i, sheet), s, 1.0) - muscle_point(advance, r_of(i, sheet), s, 0.0),
+                       line);
     return sum / nr;
   };
   for (int j = 0; j < ns; ++j) {

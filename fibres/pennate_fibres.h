@@ -67,16 +67,16 @@ struct PennateOptions {
 
 /// What the drawing did.
 struct PennateReport {
-  double target_deg = 0.0;            ///< requested pennation
-  double mean_deg = 0.0;              ///< mean pennation of all fibres' chords
-  std::vector<double> advance;        ///< per sheet (s), the template's rise per unit of x
-  int unreached = 0;                  ///< sheets whose advance hit its bound before the target
-  bool mirrored = false;              ///< the long diagonal is X = 1 - Y (else X = Y)
-  double diagonal_ratio = 0.0;        ///< middle layer: short diagonal over long diagonal
-  long fibres = 0, projected_ends = 0;  ///< fibres drawn, ends moved onto the surface
-  long reflected_points = 0;            ///< inner points found outside, reflected inside
-  long smoothing_refused = 0;           ///< smoothing moves not made (the point would leave the muscle)
-  long smoothing_reduced = 0;           ///< times a fibre's smoothing steps were halved (a segment left)
+  double target_deg = 0.0;                       ///< requested pennation
+  double mean_deg = 0.0;                         ///< mean pennation of all fibres' chords
+  std::vector<double> advance;                   ///< per sheet (s), the template's rise per unit of x
+  int unreached = 0;                             ///< sheets whose advance hit its bound before the target
+  bool mirrored = false;                         ///< the long diagonal is X = 1 - Y (else X = Y)
+  double diagonal_ratio = 0.0;                   ///< middle layer: short diagonal over long diagonal
+  long fibres = 0, projected_ends = 0;           ///< fibres drawn, ends moved onto the surface
+  long reflected_points = 0;                     ///< inner points found outside, reflected inside
+  long smoothing_refused = 0;                    ///< smoothing moves not made (the point would leave the muscle)
+  long smoothing_reduced = 0;                    ///< times a fibre's smoothing steps were halved (a segment left)
   long origin_points = 0, insertion_points = 0;  ///< area samples
   nlohmann::json to_json() const;
 };

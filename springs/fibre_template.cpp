@@ -26,9 +26,9 @@ constexpr double kRectusDrop = 0.25;
 }  // namespace
 
 const std::vector<TemplateKind>& all_template_kinds() {
-  static const std::vector<TemplateKind> kinds = {TemplateKind::parallel, TemplateKind::pennate, TemplateKind::curved,
-                                                  TemplateKind::fanned, TemplateKind::rectus, TemplateKind::unipennate,
-                                                  TemplateKind::bipennate};
+  static const std::vector<TemplateKind> kinds = {
+      TemplateKind::parallel, TemplateKind::pennate,    TemplateKind::curved,   TemplateKind::fanned,
+      TemplateKind::rectus,   TemplateKind::unipennate, TemplateKind::bipennate};
   return kinds;
 }
 
@@ -52,9 +52,7 @@ TemplateKind parse_template_kind(const std::string& name) {
                     "' (valid: parallel, pennate, curved, fanned, rectus, unipennate, bipennate)");
 }
 
-bool crosses_lattice(TemplateKind kind) {
-  return kind == TemplateKind::unipennate || kind == TemplateKind::bipennate;
-}
+bool crosses_lattice(TemplateKind kind) { return kind == TemplateKind::unipennate || kind == TemplateKind::bipennate; }
 
 Vec3 pennate_point(TemplateKind kind, double advance, double r, double s, double t) {
   if (!crosses_lattice(kind)) return template_point(kind, r, s, t);

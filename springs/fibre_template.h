@@ -25,11 +25,11 @@ namespace fascicle::springs {
 
 /// The seven template families.
 enum class TemplateKind {
-  parallel,  ///< fibres straight from face z = 0 to face z = 1 (sartorius)
-  pennate,   ///< areas on opposite faces, offset in x, so fibres run obliquely (vastus medialis)
-  curved,    ///< both areas on face z = 0, fibres arc through the volume (iliacus)
-  fanned,    ///< broad origin on z = 0 converging to a narrow insertion on z = 1 (gluteus)
-  rectus,    ///< bipennate: from a central aponeurosis x = 1/2 obliquely to both sides x = 0, 1
+  parallel,    ///< fibres straight from face z = 0 to face z = 1 (sartorius)
+  pennate,     ///< areas on opposite faces, offset in x, so fibres run obliquely (vastus medialis)
+  curved,      ///< both areas on face z = 0, fibres arc through the volume (iliacus)
+  fanned,      ///< broad origin on z = 0 converging to a narrow insertion on z = 1 (gluteus)
+  rectus,      ///< bipennate: from a central aponeurosis x = 1/2 obliquely to both sides x = 0, 1
   unipennate,  ///< across the cube from aponeurosis x = 0 to x = 1, rising in z (soleus, vastus lateralis)
   bipennate,   ///< from both sides x = 0, 1 to a central sheet x = 1/2, rising in z (rectus femoris)
 };

@@ -115,7 +115,7 @@ TEST_CASE("unipennate and bipennate fibres cross the thin direction at the reque
       INFO("across the thickness " << across_thickness << ", the width " << across_width << ", longest "
                                    << longest_chord << " of " << longest);
       CHECK(across_thickness > 2.0 * across_width);  // across the width instead: well under 1
-      CHECK(longest_chord <= 1.4 * longest);  // across the width: 2.5 times as long
+      CHECK(longest_chord <= 1.4 * longest);         // across the width: 2.5 times as long
       CHECK(d.report.architecture.fibre_length_m.mean * 1e3 >= 0.4 * longest);
       // The check measured the ends against the areas the family spans, with their own patches.
       CHECK(d.report.quality.attachment.origin_max <= 0.02);
