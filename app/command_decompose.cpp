@@ -321,6 +321,10 @@ void add_decompose_command(CLI::App& app) {
                   "Continue each fibre's end along its last segment onto its attachment area where that folds no "
                   "cell (true) or keep the cast ends (false)")
       ->capture_default_str();
+  cmd->add_option("--smooth-steps", o.smoothing.steps,
+                  "Steps smoothing each fibre's joints that turn by more than 30 degrees, under the check's guards "
+                  "(0: none)")
+      ->capture_default_str();
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();

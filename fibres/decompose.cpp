@@ -416,6 +416,7 @@ void DecomposeOptions::validate() const {
   settle.validate();
   untangle.validate();
   segments.validate();
+  smoothing.validate();
   // Decompose's own cap on the fibre count (below the lattice's), then the lattice's checks of
   // fibres, resolution and their product.
   if (fibres > 1'000'000) throw OptionError("fibres: at most 1000000, got " + std::to_string(fibres));
@@ -772,6 +773,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     report.containment["segments"]["reverted"] = false;
   }
 
+  // Each fibre smoothed along itself (fibres/smooth_fibres.h), under the check's guards; a
+  // crossing template smooths the fibres it draws instead.
+  if (options.smoothing.steps > 0 && !springs::crosses_lattice(options.kind)) {
+    const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
+    report.containment["smoothing"] = smooth_fibres(lattice, system, query, end_tolerance, options.smoothing).to_json();
+  }
   out.fibres = fibres_of(system.positions);
   for (const auto& line : out.fibres.lines)
     for (const Vec3& p : line)

@@ -34,11 +34,13 @@
 ///  9. fibre segments that cut the surface between their points are shifted back inside where
 ///     that folds no cell and takes no other segment out (fibres/contain_segments.h; undone when
 ///     the result then fails the check and would pass without it);
-/// 10. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
+/// 10. each fibre's joints that turn by more than 30 degrees smoothed along it, under the check's
+///     guards (fibres/smooth_fibres.h);
+/// 11. the fibres are the interior lattice lines (the surface ring lies on the surface and is not
 ///     output), checked with fibres/fibre_check.h: all points inside, no inverted cell, coverage,
 ///     attachment distances (and the segments that leave the muscle, reported).
-/// With a crossing template (unipennate, bipennate) the lattice is the parallel one and step 10's
-/// fibres are drawn through it instead (fibres/pennate_fibres.h), checked against the areas they
+/// With a crossing template (unipennate, bipennate) the lattice is the parallel one and step 11's
+/// fibres are drawn through it instead (fibres/pennate_fibres.h, which smooths them itself), checked against the areas they
 /// span, the lattice judged as a map (no folded cell, every point inside).
 /// A result that fails the check is made again with the options of retry_plan() (the alternative
 /// placement; with landmark areas other corner twists) and the best kept (better_result()).
@@ -48,6 +50,7 @@
 #include "fibres/fibre_check.h"
 #include "fibres/landmark_strip.h"
 #include "fibres/pennate_fibres.h"
+#include "fibres/smooth_fibres.h"
 #include "fibres/template_placement.h"
 #include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
@@ -122,6 +125,9 @@ struct DecomposeOptions {
   /// Skip the alternative placement and the rims left when the first result has more inverted cells
   /// (or outlasted the free-ring untangling), >= 0 (default 50: such results seldom pass on a retry).
   long retry_max_inverted_cells = 50;
+  /// Each fibre's sharp joints smoothed along it after the segment moves, under the check's guards
+  /// (fibres/smooth_fibres.h; default 10 steps, weight 0.5, joints over 30 degrees; steps 0: none).
+  FibreSmoothingOptions smoothing;
   /// Move the fibre segments that leave the muscle back inside (step 11, fibres/contain_segments.h)
   /// (default true).
   bool contain_segments = true;
