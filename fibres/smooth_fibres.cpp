@@ -42,6 +42,7 @@ nlohmann::json FibreSmoothingReport::to_json() const {
           {"refused_cells", refused_cells},
           {"max_turning_before_deg", max_turning_before_deg},
           {"max_turning_after_deg", max_turning_after_deg},
+          {"crossing_after", crossing_after},
           {"seconds", seconds}};
 }
 
@@ -121,6 +122,10 @@ FibreSmoothingReport smooth_fibres(const springs::Lattice& lattice, springs::Spr
     }
   }
   report.max_turning_after_deg = max_turning();
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i)
+      for (int k = 0; k < segments; ++k)
+        report.crossing_after += fibre_segment_leaves(query, at(i, j, k), at(i, j, k + 1), k, segments, end_tolerance);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
 }

@@ -41,6 +41,9 @@ struct FibreSmoothingReport {
   long refused_segments = 0;  ///< moves not made: a segment of its line would start to leave
   long refused_cells = 0;     ///< moves not made: a cell round the point would fold
   double max_turning_before_deg = 0.0, max_turning_after_deg = 0.0;  ///< largest joint angle of the fibres
+  /// Fibre segments leaving the muscle on return (the rule of fibres/contain_segments.h; the moves
+  /// start none, and can end some).
+  long crossing_after = 0;
   double seconds = 0.0;
   nlohmann::json to_json() const;
 };
