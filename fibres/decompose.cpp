@@ -773,8 +773,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     report.containment["segments"]["reverted"] = false;
   }
 
-  // Each fibre smoothed along itself (fibres/smooth_fibres.h), under the check's guards; a
-  // crossing template smooths the fibres it draws instead.
+  // Each fibre's joints over 30 degrees smoothed along it (fibres/smooth_fibres.h), under the
+  // check's guards; a crossing template smooths the fibres it draws instead.
   if (options.smoothing.steps > 0 && !springs::crosses_lattice(options.kind)) {
     const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
     report.containment["smoothing"] = smooth_fibres(lattice, system, query, end_tolerance, options.smoothing).to_json();
