@@ -365,6 +365,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--contact-rounds", o.contact_rounds,
                   "Containment rounds: points the settle leaves outside are fixed just inside and the settle rerun")
       ->capture_default_str();
+  cmd->add_option("--contact-segments", o.contact_segments,
+                  "Untangling: a last attempt whose containment rounds also pin the fibre segments that leave the "
+                  "muscle between their points back inside, kept when it folds no more cells")
+      ->capture_default_str();
   cmd->add_option("--untangle", o.untangle_cells,
                   "Unfold the cells the settle leaves inverted (barrier untangling, fibres/untangle.h)")
       ->capture_default_str();

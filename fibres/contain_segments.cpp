@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <array>
 #include <chrono>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,94 @@ nlohmann::json SegmentContainmentReport::to_json() const {
           {"rejected", rejected},
           {"sweeps", sweeps},
           {"seconds", seconds}};
+}
+
+bool segment_inward_shift(const SurfaceQuery& query, const Vec3& a, const Vec3& b, bool free0, bool free1, int k,
+                          int segments, double end_tolerance, double spacing, const SegmentContainmentOptions& options,
+                          Vec3* d0, Vec3* d1) {
+  *d0 = Vec3::Zero();
+  *d1 = Vec3::Zero();
+  if (!free0 && !free1) return true;
+  // The deepest sample goes `margin` x its depth inside (a shift of a fraction of a spacing
+  // would fold the cells of thin fibre bundles); the segment may then leave at another sample
+  // (a faceted wall), so the shift is repeated from the moved segment, up to `steps` times.
+  for (int step = 0; step < options.steps; ++step) {
+    double t = 0.5;
+    Vec3 closest = Vec3::Zero();
+    const Vec3 a1 = a + *d0, b1 = b + *d1;
+    double depth = segment_excursion(query, a1, b1, options.samples, &t, &closest);
+    // A segment that leaves between its samples (a sliver past a facet edge): 8 times as many
+    // samples.
+    if (!(depth > 0.0) && fibre_segment_leaves(query, a1, b1, k, segments, end_tolerance))
+      depth = segment_excursion(query, a1, b1, 8 * options.samples + 1, &t, &closest);
+    if (!(depth > 0.0)) break;
+    const Vec3 shift = (1.0 + options.margin) * (closest - (a1 + t * (b1 - a1)));
+    if (free0) *d0 += free1 ? shift : Vec3(shift / (1.0 - t));
+    if (free1) *d1 += free0 ? shift : Vec3(shift / t);
+    if (std::max(d0->norm(), d1->norm()) > options.max_shift * spacing) return false;
+  }
+  return true;
+}
+
+std::vector<std::pair<int, Vec3>> leaving_segment_shifts(const springs::Lattice& lattice,
+                                                         const springs::SpringSystem& system, const SurfaceQuery& query,
+                                                         double end_tolerance,
+                                                         const SegmentContainmentOptions& options) {
+  options.validate();
+  const std::vector<Vec3>& x = system.positions;
+  const int nz = lattice.nz, lines = std::max((lattice.nx - 2) * (lattice.ny - 2), 0);
+  const std::vector<double> spacing = lattice_local_spacing(system);
+  // Per line, the shift of each of its points (the larger where both of its segments leave).
+  std::vector<std::vector<std::pair<int, Vec3>>> found(static_cast<std::size_t>(lines));
+  tbb::parallel_for(0, lines, [&](int line) {
+    const int i = 1 + line % (lattice.nx - 2), j = 1 + line / (lattice.nx - 2);
+    std::vector<Vec3> shift(static_cast<std::size_t>(nz), Vec3::Zero());
+    for (int k = 0; k + 1 < nz; ++k) {
+      const int q0 = lattice.index(i, j, k), q1 = lattice.index(i, j, k + 1);
+      const Vec3& a = x[static_cast<std::size_t>(q0)];
+      const Vec3& b = x[static_cast<std::size_t>(q1)];
+      if (!fibre_segment_leaves(query, a, b, k, nz - 1, end_tolerance)) continue;
+      const double h = 0.5 * (spacing[static_cast<std::size_t>(q0)] + spacing[static_cast<std::size_t>(q1)]);
+      Vec3 d0, d1;
+      segment_inward_shift(query, a, b, !system.fixed[static_cast<std::size_t>(q0)],
+                           !system.fixed[static_cast<std::size_t>(q1)], k, nz - 1, end_tolerance,
+                           std::numeric_limits<double>::infinity(), options, &d0, &d1);
+      // A deep bend is asked for at most max_shift spacings at a time.
+      const double cap = options.max_shift * h;
+      if (d0.norm() > cap) d0 *= cap / d0.norm();
+      if (d1.norm() > cap) d1 *= cap / d1.norm();
+      Vec3& s0 = shift[static_cast<std::size_t>(k)];
+      Vec3& s1 = shift[static_cast<std::size_t>(k + 1)];
+      if (d0.squaredNorm() > s0.squaredNorm()) s0 = d0;
+      if (d1.squaredNorm() > s1.squaredNorm()) s1 = d1;
+    }
+    for (int k = 0; k < nz; ++k)
+      if (shift[static_cast<std::size_t>(k)].squaredNorm() > 0.0)
+        found[static_cast<std::size_t>(line)].push_back({lattice.index(i, j, k), shift[static_cast<std::size_t>(k)]});
+  });
+  std::vector<std::pair<int, Vec3>> out;
+  for (const auto& list : found) out.insert(out.end(), list.begin(), list.end());
+  return out;
+}
+
+long crossing_segment_count(const springs::Lattice& lattice, const springs::SpringSystem& system,
+                            const SurfaceQuery& query, const SegmentContact& contact) {
+  const std::vector<Vec3>& x = system.positions;
+  const int nz = lattice.nz, lines = std::max((lattice.nx - 2) * (lattice.ny - 2), 0);
+  std::vector<long> count(static_cast<std::size_t>(lines), 0);
+  tbb::parallel_for(0, lines, [&](int line) {
+    const int i = 1 + line % (lattice.nx - 2), j = 1 + line / (lattice.nx - 2);
+    for (int k = 0; k + 1 < nz; ++k) {
+      const Vec3& a = x[static_cast<std::size_t>(lattice.index(i, j, k))];
+      const Vec3& b = x[static_cast<std::size_t>(lattice.index(i, j, k + 1))];
+      if (fibre_segment_leaves(query, a, b, k, nz - 1, contact.end_tolerance) &&
+          segment_excursion(query, a, b, contact.excursion_samples) > contact.tolerance)
+        ++count[static_cast<std::size_t>(line)];
+    }
+  });
+  long total = 0;
+  for (long c : count) total += c;
+  return total;
 }
 
 SegmentContainmentReport contain_segments(const springs::Lattice& lattice, springs::SpringSystem& system,
@@ -96,30 +185,9 @@ SegmentContainmentReport contain_segments(const springs::Lattice& lattice, sprin
         continue;
       }
       const double h = 0.5 * (spacing[static_cast<std::size_t>(q0)] + spacing[static_cast<std::size_t>(q1)]);
-      // The deepest sample goes `margin` x its depth inside (a shift of a fraction of a spacing
-      // would fold the cells of thin fibre bundles); the segment may then leave at another
-      // sample (a faceted wall), so the shift is repeated from the moved segment, up to
-      // `steps` times, before the move is judged.
       Vec3 d0 = Vec3::Zero(), d1 = Vec3::Zero();
-      bool too_far = false;
-      for (int step = 0; step < options.steps; ++step) {
-        double t = 0.5;
-        Vec3 closest = Vec3::Zero();
-        const Vec3 a1 = a + d0, b1 = b + d1;
-        double depth = segment_excursion(query, a1, b1, options.samples, &t, &closest);
-        // A segment that leaves between its samples (a sliver past a facet edge): 8 times as
-        // many samples.
-        if (!(depth > 0.0) && fibre_segment_leaves(query, a1, b1, k, nz - 1, end_tolerance))
-          depth = segment_excursion(query, a1, b1, 8 * options.samples + 1, &t, &closest);
-        if (!(depth > 0.0)) break;
-        const Vec3 shift = (1.0 + options.margin) * (closest - (a1 + t * (b1 - a1)));
-        if (free0) d0 += free1 ? shift : Vec3(shift / (1.0 - t));
-        if (free1) d1 += free0 ? shift : Vec3(shift / t);
-        if (std::max(d0.norm(), d1.norm()) > options.max_shift * h) {
-          too_far = true;
-          break;
-        }
-      }
+      const bool too_far =
+          !segment_inward_shift(query, a, b, free0, free1, k, nz - 1, end_tolerance, h, options, &d0, &d1);
       if (too_far || (d0.squaredNorm() == 0.0 && d1.squaredNorm() == 0.0)) {
         ++report.rejected;
         continue;

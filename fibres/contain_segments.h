@@ -30,6 +30,9 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <utility>
+#include <vector>
+
 namespace fascicle {
 
 /// Options of contain_segments().
@@ -62,6 +65,41 @@ struct SegmentContainmentReport {
   double seconds = 0.0;
   nlohmann::json to_json() const;
 };
+
+/// The fibre segments a containment holds inside (fibres/untangle_lattice.h): where the fibre ends'
+/// segments may touch the surface, and the shifts' options.
+struct SegmentContact {
+  double end_tolerance = 0.0;  ///< mesh units (the check's end tolerance times the muscle's diagonal)
+  /// Excursion over which a segment fails the check, mesh units (its segment_tolerance times the diagonal).
+  double tolerance = 0.0;
+  int excursion_samples = 32;  ///< samples the check measures an excursion with
+  SegmentContainmentOptions shifts;
+};
+
+/// The interior lattice lines' segments that leave the surface (fibre_segment_leaves()) by more
+/// than contact.tolerance at one of contact.excursion_samples samples: the check's
+/// crossing_segments for the lattice's fibres.
+long crossing_segment_count(const springs::Lattice& lattice, const springs::SpringSystem& system,
+                            const SurfaceQuery& query, const SegmentContact& contact);
+
+/// The shifts that take segment k (points a, b) of a fibre of `segments` segments back inside:
+/// the deepest sample outside moved `margin` times its depth inside, repeated from the moved
+/// segment up to `steps` times; both points shifted alike when both are free (free0, free1),
+/// else the free one by the shift over its weight at the sample. Into d0, d1 (zero when nothing
+/// is outside or neither point is free). False when a shift exceeds max_shift x `spacing`.
+bool segment_inward_shift(const SurfaceQuery& query, const Vec3& a, const Vec3& b, bool free0, bool free1, int k,
+                          int segments, double end_tolerance, double spacing, const SegmentContainmentOptions& options,
+                          Vec3* d0, Vec3* d1);
+
+/// For every segment of the interior lattice lines that leaves the surface (the check's rule,
+/// fibre_segment_leaves()), the segment_inward_shift() of its free points, each shortened to at
+/// most max_shift local spacings; a point of two leaving segments takes the longer shift. As
+/// (lattice point, shift) pairs in lattice order: the pins of the untangling's segment attempt
+/// (fibres/untangle_lattice.h, docs/decompose.md step 8). Throws OptionError for bad options.
+std::vector<std::pair<int, Vec3>> leaving_segment_shifts(const springs::Lattice& lattice,
+                                                         const springs::SpringSystem& system, const SurfaceQuery& query,
+                                                         double end_tolerance,
+                                                         const SegmentContainmentOptions& options = {});
 
 /// Moves the interior lattice lines' segments that leave the surface of `query` back inside (see
 /// the file comment). `system` holds the lattice's positions and fixed flags (the first

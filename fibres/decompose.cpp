@@ -659,6 +659,11 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // the surface (stiffer each round), so that the correction spreads over its neighbours; only
   // points still outside after the soft rounds are pinned.
   const std::size_t lattice_points = system.positions.size();
+  // Distance within which a fibre end's segment may touch the surface (the check's).
+  const double diagonal = bounding_box(muscle.positions).diagonal();
+  const double end_tolerance = options.check.end_tolerance * diagonal;
+  const SegmentContact segment_contact{end_tolerance, options.check.segment_tolerance * diagonal,
+                                       options.check.excursion_samples, options.segments};
   std::vector<double> point_stiffness(lattice_points, 0.0), point_springs(lattice_points, 0.0);
   for (const springs::Spring& s : system.springs) {
     point_stiffness[static_cast<std::size_t>(s.a)] += s.stiffness;
@@ -740,44 +745,98 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   }
   // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
   // containment.
+  // The untangled lattice before its segment attempt, when that was kept (the fallback below).
+  springs::SpringSystem unheld;
+  bool has_unheld = false;
   if (options.untangle_cells) {
     stage_started("untangle");
     const LatticeUntangleReport untangled =
-        untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas);
+        untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas,
+                         options.contact_segments ? &segment_contact : nullptr, &unheld);
+    has_unheld = untangled.segments_kept;
     pinned += static_cast<int>(untangled.pinned);
     outside = outside_free_points(system, query);
     report.untangle = untangled.to_json();
   }
-  nlohmann::json end_alignment = nullptr;
-  if (options.align_ends) end_alignment = align_ends(lattice, system, query, areas, end_radius).to_json();
   report.settle["cast_faces"] = casts;
   report.settle["solves"] = solves;
   report.containment = {
       {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
-  report.containment["end_alignment"] = end_alignment;
   report.settle_seconds = since(stage);
 
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
   auto fibres_of = [&](const std::vector<Vec3>& positions) { return lattice_interior_fibres(lattice, positions); };
 
-  // Segments that leave the muscle between their points (step 11), after every other move.
-  std::vector<Vec3> before_segments;
-  long segments_moved = 0;
-  if (options.contain_segments) {
-    before_segments = system.positions;
-    const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
-    const SegmentContainmentReport contained =
-        contain_segments(lattice, system, query, end_tolerance, options.segments);
-    segments_moved = contained.moved;
-    report.containment["segments"] = contained.to_json();
-    report.containment["segments"]["reverted"] = false;
-  }
-
-  // Each fibre's joints over 30 degrees smoothed along it (fibres/smooth_fibres.h), under the
-  // check's guards; a crossing template smooths the fibres it draws instead.
-  if (options.smoothing.steps > 0 && !springs::crosses_lattice(options.kind)) {
-    const double end_tolerance = options.check.end_tolerance * bounding_box(muscle.positions).diagonal();
-    report.containment["smoothing"] = smooth_fibres(lattice, system, query, end_tolerance, options.smoothing).to_json();
+  // Steps 8-10 on a settled, untangled lattice: the ends aligned, the segments that leave moved
+  // back inside, the sharp joints smoothed; their reports into `into`. Returns the fallbacks of
+  // the check below, in order: the positions without the segment moves, smoothed, then without
+  // the moves or the smoothing (each where it differs).
+  struct Fallback {
+    std::vector<Vec3> positions;
+    bool unmoved = false, unsmoothed = false, unheld = false;
+    nlohmann::json smoothing = nullptr;  // the smoothing report of these positions, when smoothed
+  };
+  auto finish_lines = [&](springs::SpringSystem& lines, nlohmann::json& into) {
+    into["end_alignment"] =
+        options.align_ends ? align_ends(lattice, lines, query, areas, end_radius).to_json() : nlohmann::json(nullptr);
+    const std::vector<Vec3> aligned = lines.positions;
+    long moved = 0, smoothed = 0;
+    if (options.contain_segments) {
+      const SegmentContainmentReport contained =
+          contain_segments(lattice, lines, query, end_tolerance, options.segments);
+      moved = contained.moved;
+      into["segments"] = contained.to_json();
+      into["segments"]["reverted"] = false;
+    }
+    std::vector<Fallback> fallbacks;
+    // A crossing template smooths the fibres it draws instead.
+    const bool smooth = options.smoothing.steps > 0 && !springs::crosses_lattice(options.kind);
+    if (smooth) {
+      const FibreSmoothingReport smoothing = smooth_fibres(lattice, lines, query, end_tolerance, options.smoothing);
+      smoothed = smoothing.moved;
+      into["smoothing"] = smoothing.to_json();
+      into["smoothing"]["reverted"] = false;
+      if (moved > 0) {
+        springs::SpringSystem unmoved = lines;
+        unmoved.positions = aligned;
+        const nlohmann::json report_unmoved =
+            smooth_fibres(lattice, unmoved, query, end_tolerance, options.smoothing).to_json();
+        fallbacks.push_back({std::move(unmoved.positions), true, false, false, report_unmoved});
+      }
+    }
+    if (moved > 0 || smoothed > 0) fallbacks.push_back({aligned, moved > 0, smoothed > 0});
+    return fallbacks;
+  };
+  std::vector<Fallback> fallbacks = finish_lines(system, report.containment);
+  // With the untangling's segment attempt kept, the lattice before it is finished too, and the
+  // one whose fibres fail fewer of the whole check's segments and smoothness criteria is kept,
+  // then the one with fewer joints over its 45 degrees (a hook shows at any scale, a segment just
+  // past 0.5 % of the diagonal does not), then fewer segments out; the other is the fallback below.
+  nlohmann::json unheld_report = nlohmann::json::object();
+  std::vector<Fallback> unheld_fallbacks;
+  auto swap_finish_reports = [&] {
+    for (const char* key : {"end_alignment", "segments", "smoothing"}) {
+      nlohmann::json held = report.containment.value(key, nlohmann::json(nullptr));
+      report.containment[key] = unheld_report.value(key, nlohmann::json(nullptr));
+      unheld_report[key] = std::move(held);
+    }
+  };
+  if (has_unheld) {
+    unheld_fallbacks = finish_lines(unheld, unheld_report);
+    const double max_turning = CheckOptions{}.max_turning_angle_deg;
+    auto figures = [&](const springs::SpringSystem& lines) {
+      const long crossing = crossing_segment_count(lattice, lines, query, segment_contact),
+                 sharp = sharp_joints(lattice, lines.positions, max_turning);
+      return std::array<long, 3>{(crossing > 0 ? 1 : 0) + (sharp > 0 ? 1 : 0), sharp, crossing};
+    };
+    const auto held_figures = figures(system), unheld_figures = figures(unheld);
+    report.untangle["segments_figures"] = {{"held", held_figures}, {"unheld", unheld_figures}};
+    if (!(held_figures < unheld_figures)) {
+      std::swap(system, unheld);
+      std::swap(fallbacks, unheld_fallbacks);
+      swap_finish_reports();
+      report.untangle["segments_kept"] = false;
+    }
   }
   out.fibres = fibres_of(system.positions);
   for (const auto& line : out.fibres.lines)
@@ -809,16 +868,39 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     }
   } else {
     report.quality = check_fibres(out.fibres, muscle, query, checked_against, options.check);
-    // Step 11's moves guard the points, the segments and the cells, not the coverage (a global
-    // figure): when the result fails and the fibres before the moves pass, those are kept.
-    if (!report.quality.pass && segments_moved > 0) {
-      Polylines unmoved = fibres_of(before_segments);
-      CheckReport unmoved_quality = check_fibres(unmoved, muscle, query, checked_against, options.check);
-      if (unmoved_quality.pass) {
-        out.fibres = std::move(unmoved);
-        report.quality = std::move(unmoved_quality);
-        report.containment["segments"]["reverted"] = true;
-        report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
+    // The segment moves (step 9) and the untangling's segment attempt guard the points, the
+    // segments and the cells, not the coverage (a global figure): when the result fails, the
+    // fibres before the moves, then those finished from the lattice before the segment attempt
+    // (with and without its moves) are checked in turn, and the first that passes is kept.
+    if (!report.quality.pass) {
+      if (has_unheld) {
+        fallbacks.push_back({unheld.positions, false, false, true});
+        for (Fallback& f : unheld_fallbacks) {
+          f.unheld = true;
+          fallbacks.push_back(std::move(f));
+        }
+      }
+      for (const Fallback& fallback : fallbacks) {
+        Polylines fibres = fibres_of(fallback.positions);
+        CheckReport quality = check_fibres(fibres, muscle, query, checked_against, options.check);
+        if (!quality.pass) continue;
+        out.fibres = std::move(fibres);
+        report.quality = std::move(quality);
+        if (fallback.unheld) {
+          swap_finish_reports();
+          report.untangle["segments_kept"] = !report.untangle["segments_kept"].get<bool>();
+          report.untangle["segments_reverted"] = true;
+        }
+        if (fallback.unsmoothed) report.containment["smoothing"]["reverted"] = true;
+        if (!fallback.smoothing.is_null()) {
+          report.containment["smoothing"] = fallback.smoothing;
+          report.containment["smoothing"]["reverted"] = false;
+        }
+        if (fallback.unmoved) {
+          report.containment["segments"]["reverted"] = true;
+          report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
+        }
+        break;
       }
     }
   }

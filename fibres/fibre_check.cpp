@@ -312,6 +312,12 @@ StepFigures step_figures(const Polylines& fibres) {
   return out;
 }
 
+double turning_angle_deg(const Vec3& u, const Vec3& v) {
+  const double n = u.norm() * v.norm();
+  if (!(n > 0.0)) return 0.0;
+  return std::acos(std::clamp(u.dot(v) / n, -1.0, 1.0)) * 180.0 / kPi;
+}
+
 double muscle_length(const TriangleMesh& muscle) {
   if (muscle.positions.empty()) return 0.0;
   const PrincipalAxes principal = principal_axes(muscle.positions);
@@ -494,8 +500,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
       const Vec3 d = line[k + 1] - line[k];
       if (d.norm() == 0.0) continue;  // repeated points have no direction
       if (previous.norm() > 0.0) {
-        const double c = std::clamp(previous.normalized().dot(d.normalized()), -1.0, 1.0);
-        const double angle = std::acos(c) * 180.0 / kPi;
+        const double angle = turning_angle_deg(previous, d);
         joints.emplace_back(static_cast<int>(k), angle);
         if (first_joint < 0) first_joint = static_cast<int>(k);
         last_joint = static_cast<int>(k);

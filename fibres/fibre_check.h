@@ -252,6 +252,10 @@ struct CheckReport {
 /// skipped).
 StepFigures step_figures(const Polylines& fibres);
 
+/// The angle between directions u and v, degrees (0 when either is zero): how far a fibre turns at
+/// the joint where a segment along u meets one along v. The check's rule.
+double turning_angle_deg(const Vec3& u, const Vec3& v);
+
 /// Muscle length used to scale attachment distances: the extent of the vertices along their
 /// principal axis (largest eigenvector of their covariance), mesh units. 0 for an empty mesh.
 double muscle_length(const TriangleMesh& muscle);

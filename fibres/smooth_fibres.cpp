@@ -15,15 +15,22 @@
 namespace fascicle {
 namespace {
 
-// The angle between segments (a, b) and (b, c), degrees; 0 for a segment of length 0.
-double turning_deg(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 u = b - a, v = c - b;
-  const double n = u.norm() * v.norm();
-  if (!(n > 0.0)) return 0.0;
-  return std::acos(std::clamp(u.dot(v) / n, -1.0, 1.0)) * 180.0 / M_PI;
-}
+// The turning at joint b of a line through a, b, c (the check's angle).
+double turning_deg(const Vec3& a, const Vec3& b, const Vec3& c) { return turning_angle_deg(b - a, c - b); }
 
 }  // namespace
+
+long sharp_joints(const springs::Lattice& lattice, const std::vector<Vec3>& positions, double max_deg) {
+  auto at = [&](int i, int j, int k) -> const Vec3& {
+    return positions[static_cast<std::size_t>(lattice.index(i, j, k))];
+  };
+  long count = 0;
+  for (int j = 1; j + 1 < lattice.ny; ++j)
+    for (int i = 1; i + 1 < lattice.nx; ++i)
+      for (int k = 1; k + 1 < lattice.nz; ++k)
+        count += turning_deg(at(i, j, k - 1), at(i, j, k), at(i, j, k + 1)) > max_deg;
+  return count;
+}
 
 void FibreSmoothingOptions::validate() const {
   if (steps < 0 || steps > 10000)
@@ -79,10 +86,14 @@ FibreSmoothingReport smooth_fibres(const springs::Lattice& lattice, springs::Spr
       std::vector<std::array<int, 4>> good;
       for (const auto& tet : cells.around(i, j, k))
         if (cells.good(tet)) good.push_back(tet);
+      // A segment inside must stay inside, and one that leaves may not leave deeper.
+      auto depth = [&](int n) { return segment_excursion(query, at(i, j, n), at(i, j, n + 1), 16); };
       const bool before_in = !leaves(i, j, k - 1), after_in = !leaves(i, j, k);
+      const double before_depth = before_in ? 0.0 : depth(k - 1), after_depth = after_in ? 0.0 : depth(k);
       const Vec3 old = p;
       p = target;
-      if ((before_in && leaves(i, j, k - 1)) || (after_in && leaves(i, j, k))) {
+      if ((before_in ? leaves(i, j, k - 1) : depth(k - 1) > before_depth) ||
+          (after_in ? leaves(i, j, k) : depth(k) > after_depth)) {
         p = old;
         ++report.refused_segments;
         return false;

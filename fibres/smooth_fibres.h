@@ -10,7 +10,7 @@
 /// joint bends round it), its inner neighbours move the same share towards the straight
 /// continuation of the other segment instead. A move is made only where it keeps the point strictly
 /// inside the muscle, starts no segment of its line leaving the surface (the check's rule,
-/// fibres/fibre_check.h) and turns no good tetrahedron of the check's cells round it
+/// fibres/fibre_check.h), takes none that leaves deeper out (its deepest of 16 samples) and turns no good tetrahedron of the check's cells round it
 /// (fibres/check_cells.h) folded or flat. Joints under the threshold are left as they are: a
 /// 15-point fibre is too coarse for a filter of all its points, which flattens the muscle's own
 /// bends and draws the outer fibres off the surface (coverage). Steps end when one moves nothing.
@@ -20,6 +20,8 @@
 #include "springs/spring_system.h"
 
 #include <nlohmann/json_fwd.hpp>
+
+#include <vector>
 
 namespace fascicle {
 
@@ -38,7 +40,7 @@ struct FibreSmoothingOptions {
 struct FibreSmoothingReport {
   long moved = 0;             ///< point moves made (over all steps)
   long refused_outside = 0;   ///< moves not made: the point would leave the muscle
-  long refused_segments = 0;  ///< moves not made: a segment of its line would start to leave
+  long refused_segments = 0;  ///< moves not made: a segment of its line would start to leave, or leave deeper
   long refused_cells = 0;     ///< moves not made: a cell round the point would fold
   double max_turning_before_deg = 0.0, max_turning_after_deg = 0.0;  ///< largest joint angle of the fibres
   /// Fibre segments leaving the muscle on return (the rule of fibres/contain_segments.h; the moves
@@ -47,6 +49,10 @@ struct FibreSmoothingReport {
   double seconds = 0.0;
   nlohmann::json to_json() const;
 };
+
+/// Joints of the interior lattice lines at `positions` that turn by more than `max_deg` degrees
+/// (turning_angle_deg() of fibres/fibre_check.h).
+long sharp_joints(const springs::Lattice& lattice, const std::vector<Vec3>& positions, double max_deg);
 
 /// Smooths the interior lattice lines of `system` (the first lattice.point_count() positions) as
 /// described above; `end_tolerance` (mesh units) is the distance within which a fibre end's

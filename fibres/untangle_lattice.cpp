@@ -56,7 +56,12 @@ nlohmann::json LatticeUntangleReport::to_json() const {
           {"kept", kept},
           {"stops", stops},
           {"iterations", iterations},
-          {"free_ring_tried", free_ring_tried}};
+          {"free_ring_tried", free_ring_tried},
+          {"leaving_before", leaving_before},
+          {"leaving_after", leaving_after},
+          {"crossing_before", crossing_before},
+          {"crossing_after", crossing_after},
+          {"segments_kept", segments_kept}};
 }
 
 namespace {
@@ -241,7 +246,8 @@ Vec3 nearest_area_point(const std::vector<Vec3>& area, const Vec3& p) {
 
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
                                        const SurfaceQuery& query, double length, const LatticeUntangleOptions& options,
-                                       const Attachments* areas) {
+                                       const Attachments* areas, const SegmentContact* segments,
+                                       springs::SpringSystem* unheld) {
   options.validate();
   LatticeUntangleReport report;
   // The area each end layer belongs to (k = 0: origin, k = nz - 1: insertion); empty: the ends
@@ -333,7 +339,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   // against an end face can need that. With `free_ring` the surface ring may slide along the
   // surface as well.
   int budget = options.iterations;
-  auto attempt = [&](bool free_ends, bool free_ring, bool contain) {
+  auto attempt = [&](bool free_ends, bool free_ring, bool contain, bool hold_segments = false) {
     std::vector<UntangleAnchor> anchors;
     std::unordered_map<int, std::size_t> anchor_of;    // lattice point -> its containment anchor
     std::unordered_map<int, std::size_t> end_anchor;   // fibre end -> its anchor (cast place or area ball)
@@ -514,21 +520,35 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       if (!ring_anchor.empty())
         outside.erase(std::remove_if(outside.begin(), outside.end(), [&](int q) { return ring_anchor.count(q) > 0; }),
                       outside.end());
+      // Segment contact: the free points of fibre segments that leave the muscle (not outside
+      // themselves, nor freed ends or ring points, which have pins of their own).
+      std::vector<std::pair<int, Vec3>> leaving;
+      if (segments && hold_segments) {
+        leaving = leaving_segment_shifts(lattice, system, query, segments->end_tolerance, segments->shifts);
+        const std::unordered_set<int> out(outside.begin(), outside.end());
+        leaving.erase(std::remove_if(leaving.begin(), leaving.end(),
+                                     [&](const std::pair<int, Vec3>& l) {
+                                       return out.count(l.first) > 0 || ring_anchor.count(l.first) > 0 ||
+                                              end_anchor.count(l.first) > 0;
+                                     }),
+                      leaving.end());
+      }
       if (runs.size() > runs_before) {
         runs.back()["outside"] = outside.size();
+        if (hold_segments) runs.back()["leaving_points"] = leaving.size();
         runs.back()["free_ends"] = free_ends;
       }
-      const long now_outside = static_cast<long>(outside.size());
+      const long now_outside = static_cast<long>(outside.size() + leaving.size());
       if (best_outside < 0 || now_outside < best_outside) {
         best_outside = now_outside;
         outside_stalled = 0;
       } else {
         ++outside_stalled;
       }
-      std::string stop = outside.empty()                   ? "contained"
-                         : round == options.contact_rounds ? "rounds"
-                         : budget <= 0                     ? "budget"
-                                                           : "";
+      std::string stop = outside.empty() && leaving.empty() ? "contained"
+                         : round == options.contact_rounds  ? "rounds"
+                         : budget <= 0                      ? "budget"
+                                                            : "";
       if (stop.empty()) {
         // Rounds that do not leave fewer points outside than the best round before: the soft
         // pins only push the fold around (points come in here, others go out there); the pins
@@ -562,6 +582,21 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       // sliding_contact a half-space under the tangent plane at its closest surface point).
       const std::vector<double> spacing = spacing_now();
       const std::vector<double> weight_spacing = lattice_local_spacing(system);
+      for (const auto& [q, shift] : leaving) {
+        const Vec3 target = system.positions[static_cast<std::size_t>(q)] + shift;
+        const auto it = anchor_of.find(q);
+        if (it == anchor_of.end()) {
+          const double h = weight_spacing[static_cast<std::size_t>(q)];
+          anchor_of[q] = anchors.size();
+          UntangleAnchor a{q, target, options.contact_weight / (h * h)};
+          a.normal = -shift.normalized();  // a half-space: the point may go deeper
+          anchors.push_back(a);
+        } else {
+          anchors[it->second].target = target;
+          anchors[it->second].normal = -shift.normalized();
+          anchors[it->second].weight *= 4.0;
+        }
+      }
       for (int q : outside) {
         const Vec3 target = contact_target(q, spacing);
         Vec3 normal = Vec3::Zero();
@@ -683,6 +718,45 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       run_from(settled, true, true, other, "free_ring" + tag);
       if (inverted_left > 0)
         run_from(free_result, false, false, everywhere && other, "free_ring" + tag + "_then_held_ends");
+    }
+  }
+  // The segment attempt (with `segments`): from the kept result, ends and ring held, rounds whose
+  // pins hold the leaving fibre segments in; kept when it folds no more cells, leaves fewer points
+  // on leaving segments and no more segments out by more than the tolerance.
+  auto leaving_count = [&] {
+    return static_cast<long>(
+        leaving_segment_shifts(lattice, system, query, segments->end_tolerance, segments->shifts).size());
+  };
+  long crossing_before = 0;
+  if (segments) {
+    system.positions = best;
+    system.fixed = best_fixed;
+    report.leaving_before = report.leaving_after = leaving_count();
+    crossing_before = report.crossing_before = report.crossing_after =
+        crossing_segment_count(lattice, system, query, *segments);
+  }
+  if (segments && crossing_before > 0) {
+    budget = options.iterations;
+    attempt(false, false, everywhere, true);
+    runs.push_back({{"attempt", "segments"}});
+    long pinned = 0;
+    const long n = finish(pinned);
+    runs.back()["finished"] = n;
+    const long leaving = leaving_count(), crossing = crossing_segment_count(lattice, system, query, *segments);
+    if (n <= inverted_left && crossing <= crossing_before && leaving < report.leaving_before) {
+      if (unheld) {
+        *unheld = system;
+        unheld->positions = best;
+        unheld->fixed = best_fixed;
+      }
+      inverted_left = n;
+      best = system.positions;
+      best_fixed = system.fixed;
+      kept += "+segments";
+      report.pinned += pinned;
+      report.leaving_after = leaving;
+      report.crossing_after = crossing;
+      report.segments_kept = true;
     }
   }
   system.positions = best;

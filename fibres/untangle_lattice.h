@@ -28,6 +28,7 @@
 /// cells), so that no step after the untangling moves a lattice point and the pins do not fold
 /// cells behind the untangling's back. The attempt with the fewest folded cells after its pins
 /// stays. Depths are in local spacings across the fibres (across_spacing).
+#include "fibres/contain_segments.h"
 #include "fibres/untangle.h"
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
@@ -115,6 +116,11 @@ struct LatticeUntangleReport {
       kept;  ///< the attempt kept: held_ends, free_ends, free_then_held_ends, free_ring or free_ring_then_held_ends
   /// Whether the attempts with the surface ring free ran (the attempts with it held left folds).
   bool free_ring_tried = false;
+  /// With segments: the free points of leaving fibre segments before and after the segment
+  /// attempt, and whether that attempt was kept (`kept` then ends in "+segments").
+  long leaving_before = 0, leaving_after = 0;
+  long crossing_before = 0, crossing_after = 0;  ///< and the segments leaving by more than the check allows
+  bool segments_kept = false;
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
   /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells, nor, with
@@ -165,8 +171,20 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 /// the file comment. On return the interior lattice points that were outside are fixed just
 /// inside, and `inverted_left` counts the folded tetrahedra after those pins. Throws OptionError
 /// for bad options.
+/// With `segments` (may be null) and a fibre segment that leaves the surface by more than
+/// segments->tolerance, one more attempt runs last, from the kept result with the ends and the
+/// ring held, whose containment rounds also hold the segments in: the free points of an interior
+/// line's segment that leaves (leaving_segment_shifts(); the fibre ends' segments may touch the
+/// surface within segments->end_tolerance) get half-space pins where that segment comes back
+/// inside, 4x stronger each round like the outside points', and the rounds go on while one
+/// leaves. It is kept when it folds no more cells, leaves fewer points on leaving segments and no
+/// more segments leaving by more than the tolerance; `unheld` (may be null) then receives the
+/// system as it was before it (the coverage is not guarded: a caller whose check then fails can
+/// fall back on it).
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
                                        const SurfaceQuery& query, double muscle_length,
-                                       const LatticeUntangleOptions& options = {}, const Attachments* areas = nullptr);
+                                       const LatticeUntangleOptions& options = {}, const Attachments* areas = nullptr,
+                                       const SegmentContact* segments = nullptr,
+                                       springs::SpringSystem* unheld = nullptr);
 
 }  // namespace fascicle

@@ -4,6 +4,7 @@
 #include "fibres/contain_segments.h"
 #include "fibres/fibre_check.h"
 #include "fibres/fibre_grid.h"
+#include "fibres/untangle_lattice.h"
 #include "morph/attachments.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
@@ -151,4 +152,76 @@ TEST_CASE("segment containment options are validated", "[fibres][contain]") {
   options.max_shift = 0.0;
   CHECK_THROWS_AS(options.validate(), OptionError);
   CHECK_NOTHROW(SegmentContainmentOptions{}.validate());
+}
+
+TEST_CASE("the shifts of the leaving segments push their free points out of the bend, and count as the check does",
+          "[fibres][contain]") {
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  const SurfaceQuery query(tube);
+  const springs::Lattice lattice = bent_lattice();
+  const double diagonal = bounding_box(tube.positions).diagonal();
+  const CheckOptions check_options;
+  const SegmentContact contact{check_options.end_tolerance * diagonal,
+                               check_options.segment_tolerance * diagonal,
+                               check_options.excursion_samples,
+                               {}};
+  CHECK(crossing_segment_count(lattice, lattice.system, query, contact) == check(lattice, tube).crossing_segments);
+  CHECK(crossing_segment_count(lattice, lattice.system, query, contact) > 0);
+
+  const auto shifts = leaving_segment_shifts(lattice, lattice.system, query, contact.end_tolerance);
+  // The free points of the innermost lines (i = 1): interior lines j = 1..4, layers 1 and 2.
+  CHECK(shifts.size() == 8);
+  const double spacing = 2.0 * 1.3 / 5.0;
+  for (const auto& [q, shift] : shifts) {
+    const int i = q % lattice.nx;
+    CHECK(i == 1);
+    CHECK_FALSE(lattice.system.fixed[static_cast<std::size_t>(q)]);
+    const Vec3& p = lattice.system.positions[static_cast<std::size_t>(q)];
+    CHECK(shift.dot(Vec3(p.x(), p.y(), 0.0)) > 0.0);
+    CHECK(shift.norm() > 0.0);
+    CHECK(shift.norm() < 3.0 * 9.22 + spacing);  // at most max_shift local spacings
+  }
+  // Segments inside: nothing.
+  springs::Lattice straight = bent_lattice(0.5);
+  CHECK(leaving_segment_shifts(straight, straight.system, query, contact.end_tolerance).empty());
+  CHECK(crossing_segment_count(straight, straight.system, query, contact) == 0);
+}
+
+TEST_CASE("the untangling's segment attempt holds the leaving segments in without folding a cell",
+          "[fibres][contain][untangle]") {
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  const SurfaceQuery query(tube);
+  const double diagonal = bounding_box(tube.positions).diagonal();
+  const CheckOptions check_options;
+  const SegmentContact contact{check_options.end_tolerance * diagonal,
+                               check_options.segment_tolerance * diagonal,
+                               check_options.excursion_samples,
+                               {}};
+
+  // Without segments there is nothing to unfold: the lattice stays as it is.
+  springs::Lattice plain = bent_lattice();
+  const std::vector<Vec3> start = plain.system.positions;
+  const LatticeUntangleReport untouched = untangle_lattice(plain, plain.system, query, muscle_length(tube));
+  CHECK(untouched.inverted_left == 0);
+  CHECK_FALSE(untouched.segments_kept);
+  CHECK(plain.system.positions == start);
+
+  springs::Lattice lattice = bent_lattice();
+  springs::SpringSystem unheld;
+  const LatticeUntangleReport report =
+      untangle_lattice(lattice, lattice.system, query, muscle_length(tube), {}, nullptr, &contact, &unheld);
+  CHECK(report.crossing_before == check(plain, tube).crossing_segments);
+  CHECK(report.crossing_before > 0);
+  REQUIRE(report.segments_kept);
+  CHECK(report.crossing_after == 0);
+  CHECK(report.leaving_after < report.leaving_before);
+  CHECK(report.inverted_left == 0);
+  const CheckReport after = check(lattice, tube);
+  CHECK(after.crossing_segments == 0);
+  CHECK(after.inside_fraction == 1.0);
+  CHECK(after.inverted_cells == 0);
+  // The system before the attempt is handed back, and the fixed points never move.
+  CHECK(unheld.positions == start);
+  for (std::size_t q = 0; q < start.size(); ++q)
+    if (plain.system.fixed[q]) CHECK(lattice.system.positions[q] == start[q]);
 }

@@ -273,6 +273,32 @@ TEST_CASE("a capsule decomposes into fibres inside it, ending on their areas", "
     CHECK(j.contains(key));
 }
 
+TEST_CASE("the untangling's segment attempt holds the segments that cut a bend inside", "[fibres][decompose]") {
+  // The bent tube of the next case: the chords next to its inner wall leave it by more than the
+  // check allows until the segment attempt holds them in.
+  const TriangleMesh mesh = make_bent_tube(10.0, 2.0, 150.0 * 3.14159265358979323846 / 180.0, 32);
+  DecomposeOptions options;
+  options.resolution = 8;
+  options.contain_segments = false;  // the attempt alone
+  options.smoothing.steps = 0;
+  options.contact_segments = false;
+  const Decomposition loose = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(loose.report.status == "ok");
+  REQUIRE(loose.report.quality.crossing_segments > 0);
+  CHECK_FALSE(loose.report.untangle.value("segments_kept", false));
+  options.contact_segments = true;
+  const Decomposition held = decompose_repaired(mesh, Landmarks{}, options);
+  REQUIRE(held.report.status == "ok");
+  const nlohmann::json& u = held.report.untangle;
+  CHECK(u.at("segments_kept").get<bool>());
+  CHECK(u.at("crossing_before").get<long>() == loose.report.quality.crossing_segments);
+  CHECK(u.at("crossing_after").get<long>() == held.report.quality.crossing_segments);
+  CHECK(held.report.quality.crossing_segments < loose.report.quality.crossing_segments);
+  CHECK(held.report.quality.max_segment_excursion < loose.report.quality.max_segment_excursion);
+  CHECK(held.report.quality.inverted_cells == 0);
+  CHECK(held.report.quality.inside_fraction == 1.0);
+}
+
 TEST_CASE("segments that cut a bend are moved back inside, and the check counts what is left", "[fibres][decompose]") {
   // A tube bent through 150 degrees with 8 points per fibre: about 21 degrees of arc per
   // segment, so the chords of the fibres next to the inner wall cut it (13 segments; with 6
@@ -281,7 +307,8 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   DecomposeOptions options;
   options.resolution = 8;
   options.contain_segments = false;
-  options.smoothing.steps = 0;  // step 11 alone: the smoothing after it would move the fibres again
+  options.smoothing.steps = 0;       // step 11 alone: the smoothing after it would move the fibres again,
+  options.contact_segments = false;  // and the untangling's segment attempt before it
   const Decomposition left = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(left.report.status == "ok");
   CHECK_FALSE(left.report.containment.contains("segments"));

@@ -705,6 +705,7 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
   DecomposeOptions options;
   options.retry_alternative = false;                    // this case is about the untangling of one placement
   options.end_share_retry = 0.0;                        // (nor the end-share retry)
+  options.contact_segments = false;                     // (nor the segment attempt: points outside only)
   REQUIRE(options.untangle.contact_stall_rounds == 0);  // the default: every containment round
   const Decomposition all_rounds = decompose(soup, {}, options);
   options.untangle.contact_stall_rounds = 2;
