@@ -745,14 +745,16 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   }
   // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
   // containment.
-  // The untangled lattice before its segment attempt, when that was kept (the fallback below).
+  // The untangled lattice before its segment attempt, when that was kept (the fallback below). A
+  // crossing template's fibres are drawn through the lattice, not along its lines: no attempt.
+  const bool crossing_kind = springs::crosses_lattice(options.kind);
   springs::SpringSystem unheld;
   bool has_unheld = false;
   if (options.untangle_cells) {
     stage_started("untangle");
     const LatticeUntangleReport untangled =
         untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas,
-                         options.contact_segments ? &segment_contact : nullptr, &unheld);
+                         options.contact_segments && !crossing_kind ? &segment_contact : nullptr, &unheld);
     has_unheld = untangled.segments_kept;
     pinned += static_cast<int>(untangled.pinned);
     outside = outside_free_points(system, query);

@@ -120,7 +120,8 @@ struct DecomposeOptions {
   /// fibres/untangle_lattice.h).
   LatticeUntangleOptions untangle;
   /// After the untangling's attempts, one more from the kept result whose containment rounds also pin
-  /// the fibre segments that leave the muscle between their points back inside (step 7; default true).
+  /// the fibre segments that leave the muscle between their points back inside (step 7; default true;
+  /// not with a crossing template, whose fibres do not run along the lattice lines).
   bool contact_segments = true;
   /// On a failed check, decompose again with alternative_placement() and keep the better result
   /// (default true: folds depend on the placement's free choices, and often differ between the two).
