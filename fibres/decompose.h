@@ -27,8 +27,10 @@
 ///     (`cast_rounds` times), with the same containment;
 ///  7. untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded by
 ///     a barrier energy (Garanzha et al. 2021) relative to each cell's settled shape, locally
-///     first, with the fibre ends free (soft pins) and then held, with containment; see
-///     docs/decompose.md step 8;
+///     first, with the fibre ends free (soft pins) and then held, with containment; then, where a
+///     fibre segment leaves the muscle, an attempt whose contact rounds pin the segments too
+///     (contact_segments; the lattices with and without it are finished, and the one failing fewer
+///     of the segments and smoothness criteria is kept); see docs/decompose.md step 8;
 ///  8. the fibre ends continued along their fibres onto the surface (no hook at the end joint),
 ///     where that stays on the area and folds no cell (fibres/align_ends.h);
 ///  9. fibre segments that cut the surface between their points are shifted back inside where
