@@ -792,7 +792,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     }
     std::vector<Fallback> fallbacks;
     // A crossing template smooths the fibres it draws instead.
-    const bool smooth = options.smoothing.steps > 0 && !springs::crosses_lattice(options.kind);
+    const bool smooth = options.smoothing.steps > 0 && !crossing_kind;
     if (smooth) {
       const FibreSmoothingReport smoothing = smooth_fibres(lattice, lines, query, end_tolerance, options.smoothing);
       smoothed = smoothing.moved;
@@ -813,7 +813,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // With the untangling's segment attempt kept, the lattice before it is finished too, and the
   // one whose fibres fail fewer of the whole check's segments and smoothness criteria is kept,
   // then the one with fewer joints over its 45 degrees (a hook shows at any scale, a segment just
-  // past 0.5 % of the diagonal does not), then fewer segments out; the other is the fallback below.
+  // past 0.5 % of the diagonal does not), then fewer segments out, on a tie the one without the
+  // attempt; the other is the fallback below.
   nlohmann::json unheld_report = nlohmann::json::object();
   std::vector<Fallback> unheld_fallbacks;
   auto swap_finish_reports = [&] {

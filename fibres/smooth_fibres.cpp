@@ -18,17 +18,22 @@ namespace {
 // The turning at joint b of a line through a, b, c (the check's angle).
 double turning_deg(const Vec3& a, const Vec3& b, const Vec3& c) { return turning_angle_deg(b - a, c - b); }
 
-}  // namespace
-
-long sharp_joints(const springs::Lattice& lattice, const std::vector<Vec3>& positions, double max_deg) {
+// Calls visit(angle) for every inner joint of the interior lattice lines at `positions`.
+template <class Visit>
+void for_each_joint(const springs::Lattice& lattice, const std::vector<Vec3>& positions, Visit visit) {
   auto at = [&](int i, int j, int k) -> const Vec3& {
     return positions[static_cast<std::size_t>(lattice.index(i, j, k))];
   };
-  long count = 0;
   for (int j = 1; j + 1 < lattice.ny; ++j)
     for (int i = 1; i + 1 < lattice.nx; ++i)
-      for (int k = 1; k + 1 < lattice.nz; ++k)
-        count += turning_deg(at(i, j, k - 1), at(i, j, k), at(i, j, k + 1)) > max_deg;
+      for (int k = 1; k + 1 < lattice.nz; ++k) visit(turning_deg(at(i, j, k - 1), at(i, j, k), at(i, j, k + 1)));
+}
+
+}  // namespace
+
+long sharp_joints(const springs::Lattice& lattice, const std::vector<Vec3>& positions, double max_deg) {
+  long count = 0;
+  for_each_joint(lattice, positions, [&](double angle) { count += angle > max_deg ? 1 : 0; });
   return count;
 }
 
@@ -64,10 +69,7 @@ FibreSmoothingReport smooth_fibres(const springs::Lattice& lattice, springs::Spr
   const int segments = lattice.nz - 1;
   auto max_turning = [&] {
     double worst = 0.0;
-    for (int j = 1; j + 1 < lattice.ny; ++j)
-      for (int i = 1; i + 1 < lattice.nx; ++i)
-        for (int k = 1; k < segments; ++k)
-          worst = std::max(worst, turning_deg(at(i, j, k - 1), at(i, j, k), at(i, j, k + 1)));
+    for_each_joint(lattice, x, [&](double angle) { worst = std::max(worst, angle); });
     return worst;
   };
   report.max_turning_before_deg = max_turning();

@@ -727,15 +727,13 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     return static_cast<long>(
         leaving_segment_shifts(lattice, system, query, segments->end_tolerance, segments->shifts).size());
   };
-  long crossing_before = 0;
   if (segments) {
     system.positions = best;
     system.fixed = best_fixed;
     report.leaving_before = report.leaving_after = leaving_count();
-    crossing_before = report.crossing_before = report.crossing_after =
-        crossing_segment_count(lattice, system, query, *segments);
+    report.crossing_before = report.crossing_after = crossing_segment_count(lattice, system, query, *segments);
   }
-  if (segments && crossing_before > 0) {
+  if (segments && report.crossing_before > 0) {
     budget = options.iterations;
     attempt(false, false, everywhere, true);
     runs.push_back({{"attempt", "segments"}});
@@ -743,7 +741,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     const long n = finish(pinned);
     runs.back()["finished"] = n;
     const long leaving = leaving_count(), crossing = crossing_segment_count(lattice, system, query, *segments);
-    if (n <= inverted_left && crossing <= crossing_before && leaving < report.leaving_before) {
+    if (n <= inverted_left && crossing <= report.crossing_before && leaving < report.leaving_before) {
       if (unheld) {
         *unheld = system;
         unheld->positions = best;
