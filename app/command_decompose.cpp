@@ -38,7 +38,6 @@ struct DecomposeArgs {
   std::string muscle;  // --muscle: a preset by anatomical name (fibres/muscle_presets.h)
   int model = 6;
   bool keep_failed = false, check_options = false;
-  std::vector<std::string> landmark_twists;  // --landmark-twists: degrees, or "none"; empty: default
   DecomposeOptions options;
 };
 
@@ -66,20 +65,6 @@ void run_decompose(const DecomposeArgs& args) {
   options.sphere.method = sphere_method_from_string(args.sphere_method);
   options.backend = args.backend;
   options.rest = parse_rest_shape(args.rest);
-  if (!args.landmark_twists.empty()) {
-    options.landmark_twists_deg.clear();
-    if (!(args.landmark_twists.size() == 1 && args.landmark_twists[0] == "none"))
-      for (const std::string& v : args.landmark_twists) {
-        std::size_t used = 0;
-        double twist = 0.0;
-        try {
-          twist = std::stod(v, &used);
-        } catch (const std::exception&) { used = 0; }
-        if (used == 0 || used != v.size())
-          throw OptionError("landmark_twists_deg: '" + v + "' is not a number of degrees (or give 'none' alone)");
-        options.landmark_twists_deg.push_back(twist);
-      }
-  }
   options.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
@@ -265,20 +250,12 @@ void add_decompose_command(CLI::App& app) {
                   "Automatic areas: the fibre ends are placed on this share of each --end-fraction area (the check "
                   "keeps the whole areas)")
       ->capture_default_str();
-  cmd->add_option("--end-share-retry", o.end_share_retry,
-                  "Automatic areas: when the fibres fail the check, decompose once more with the placement's share "
-                  "of the areas times this and keep the better result (0: no such retry)")
-      ->capture_default_str();
   cmd->add_option("--region-radius", o.placement.region_radius,
                   "Attachment region: vertices within this fraction of the muscle length of an area point")
       ->capture_default_str();
   cmd->add_option("--landmark-strip", o.strip.join,
                   "Join each landmark area's points along their spanning tree into a gapless strip (true) or keep "
                   "disks round the points (false)")
-      ->capture_default_str();
-  cmd->add_option("--strip-fallback", o.strip.disk_fallback,
-                  "When every try with landmark strips fails the check, try again with the landmark disks and keep "
-                  "the best")
       ->capture_default_str();
   cmd->add_option("--strip-max-gap", o.strip.max_gap,
                   "Longest join of landmark points into a strip, as a fraction of the muscle length")
@@ -306,10 +283,6 @@ void add_decompose_command(CLI::App& app) {
                   "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
                   "sphere map's azimuths (false)")
       ->capture_default_str();
-  cmd->add_option("--landmark-twists", args->landmark_twists,
-                  "Corner twists (degrees) tried in turn when landmark areas fail the check with --corner-twist; the "
-                  "best result is kept; 'none': no retry (default 0 67.5 22.5)")
-      ->expected(1, 16);
   cmd->add_option("--cast-rounds", o.cast_rounds,
                   "Rounds of fibre ends cast onto the surface under the layer next to them, each followed by a settle")
       ->capture_default_str();
@@ -332,32 +305,17 @@ void add_decompose_command(CLI::App& app) {
                   "With --band-by-length: each ring point at the same share of its own meridian's length (true) or "
                   "each ring along one level of the sphere map (false)")
       ->capture_default_str();
-  cmd->add_option("--even-layers-ratio", o.even_layers_ratio,
-                  "When the result's longest layer of fibre segments is more than this many times the median layer, "
-                  "decompose once more with --meridian-rings true and keep the better or evener result (0: no such "
-                  "try)")
+  cmd->add_option("--second-try", o.tries.second_try,
+                  "Decompose once more where the first result shows folds or uneven layers (with --meridian-rings "
+                  "true) or a coverage gap (with --edge-cell 0.5), and keep the better result (false: one try)")
+      ->capture_default_str();
+  cmd->add_option("--even-layers-ratio", o.tries.even_layers_ratio,
+                  "A longest layer of fibre segments over this many times the median layer calls the second try "
+                  "(uneven layers; 0: never)")
       ->capture_default_str();
   cmd->add_option("--edge-cell", o.edge_cell,
                   "Width of the lattice cells between the surface ring and the outermost fibres, in fibre spacings "
                   "(0.5: the outermost fibres half a spacing from the surface; 1: the ring spaced like the fibres)")
-      ->capture_default_str();
-  cmd->add_option("--edge-cell-fallback", o.edge_cell_fallback,
-                  "With --edge-cell below 1: when the first try fails the check, decompose again with edge cells of "
-                  "1 and every retry, and keep the better result")
-      ->capture_default_str();
-  cmd->add_option("--landmark-narrow-retry", o.landmark_narrow_retry,
-                  "Landmark areas: when every try fails the check, run the plan once more with --meridian-rings "
-                  "true and --edge-cell 0.5, and keep the better result")
-      ->capture_default_str();
-  cmd->add_option("--retry", o.retry_alternative,
-                  "When the fibres fail the check, decompose once more with the alternative placement (even "
-                  "perimeter and shallow contact switched) and keep the better result")
-      ->capture_default_str();
-  cmd->add_option(
-         "--retry-max-inverted", o.retry_max_inverted_cells,
-         "Skip the retries with the alternative placement and with the rims left when the first result has more "
-         "inverted cells than this (they are also skipped when its folds outlasted the untangling with the "
-         "surface ring free)")
       ->capture_default_str();
   cmd->add_option("--contact-depth-min", o.contact_depth_min,
                   "Depth (local spacings) of the containment target of a point only just outside the muscle")

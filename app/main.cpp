@@ -85,10 +85,7 @@ std::string suggestions(const CLI::App& app, const std::string& message) {
 std::string with_option_names(const CLI::App& app, const std::string& message) {
   const std::vector<std::string> names = option_names(active_command(app));
   static const std::vector<std::pair<std::string, std::string>> renamed = {
-      {"--landmark-twists-deg", "--landmark-twists"},
       {"--max-turning-angle-deg", "--max-turning-angle"},
-      {"--retry-alternative", "--retry"},
-      {"--retry-max-inverted-cells", "--retry-max-inverted"},
       {"--coverage-samples", "--samples"},
       {"--untangle-cells", "--untangle"},
       {"--corner-twist-deg", "--corner-twist"}};

@@ -437,21 +437,11 @@ void DecomposeOptions::validate() const {
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
     throw OptionError("contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
-  if (retry_max_inverted_cells < 0)
-    throw OptionError("retry_max_inverted_cells: must be >= 0, got " + std::to_string(retry_max_inverted_cells));
   if (!(contact_depth_min > 0.0 && contact_depth_min <= contact_depth))
     throw OptionError("contact_depth_min: must be in (0, contact_depth], got " + std::to_string(contact_depth_min));
-  if (landmark_twists_deg.size() > 16)
-    throw OptionError("landmark_twists_deg: at most 16 twists, got " + std::to_string(landmark_twists_deg.size()));
-  for (double twist : landmark_twists_deg)
-    if (!(twist >= -180.0 && twist <= 180.0))
-      throw OptionError("landmark_twists_deg: each twist must be in [-180, 180], got " + std::to_string(twist));
   if (!(placement_end_share > 0.0 && placement_end_share <= 1.0))
     throw OptionError("placement_end_share: must be in (0, 1], got " + std::to_string(placement_end_share));
-  if (!(end_share_retry == 0.0 || (end_share_retry > 0.0 && end_share_retry < 1.0)))
-    throw OptionError("end_share_retry: must be 0 (no retry) or in (0, 1), got " + std::to_string(end_share_retry));
-  if (!(even_layers_ratio == 0.0 || even_layers_ratio >= 1.0))
-    throw OptionError("even_layers_ratio: must be 0 (no such try) or >= 1, got " + std::to_string(even_layers_ratio));
+  tries.validate();
   if (harmonic_direct_points < 0)
     throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
 }
@@ -483,8 +473,8 @@ nlohmann::json DecomposeReport::to_json() const {
 
 namespace {
 
-// The muscle's sphere map and its point locator, made once for all attempts (no retry changes
-// the sphere options).
+// The muscle's sphere map and its point locator, made once for both tries (the second does not
+// change the sphere options).
 struct MuscleSphere {
   SphereMap map;
   std::optional<SphereLocator> locator;  // empty when the map is not a bijection
@@ -493,8 +483,8 @@ struct MuscleSphere {
 
 // The template lattice of the options (a ring of surface lines round the fibres) and the factor
 // of its zero-rest-length (harmonic) settle's matrix: neither depends on the muscle, so they are
-// made beside the sphere map, once for all attempts (no retry changes the lattice options;
-// decompose_attempt checks it).
+// made beside the sphere map for the first try (a second try with other edge cells prepares its
+// own; decompose_attempt checks it).
 struct PreparedLattice {
   springs::LatticeOptions options;
   springs::Lattice lattice;
@@ -512,6 +502,12 @@ springs::LatticeOptions lattice_options_of(const DecomposeOptions& options) {
   lattice_options.model = options.model;
   lattice_options.edge_cell = options.edge_cell;
   return lattice_options;
+}
+
+// Whether two lattice options build the same lattice.
+bool same_lattice(const springs::LatticeOptions& a, const springs::LatticeOptions& b) {
+  return a.kind == b.kind && a.nr == b.nr && a.ns == b.ns && a.resolution == b.resolution && a.model == b.model &&
+         a.edge_cell == b.edge_cell;
 }
 
 PreparedLattice prepare_lattice(const DecomposeOptions& options) {
@@ -590,10 +586,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Template lattice with a ring of surface lines, placed on the muscle.
   auto stage = Clock::now();
   const auto split = springs::near_square_split(options.fibres);
-  const springs::LatticeOptions wanted = lattice_options_of(options);
-  FASCICLE_CHECK(wanted.kind == prepared.options.kind && wanted.nr == prepared.options.nr &&
-                     wanted.ns == prepared.options.ns && wanted.resolution == prepared.options.resolution &&
-                     wanted.model == prepared.options.model && wanted.edge_cell == prepared.options.edge_cell,
+  FASCICLE_CHECK(same_lattice(lattice_options_of(options), prepared.options),
                  "the attempt's lattice options are the prepared lattice's");
   const springs::Lattice& lattice = prepared.lattice;
   const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);
@@ -921,29 +914,29 @@ bool free_ring_tried(const DecomposeReport& r) {
   return r.untangle.is_object() && r.untangle.value("free_ring_tried", false);
 }
 
-// The start of an entry of the report's `attempts`: what the attempt changed.
-nlohmann::json attempt_header(const std::string& change, const DecomposeOptions& options) {
+// The start of an entry of the report's `attempts`: what the try changed and why.
+nlohmann::json attempt_header(const std::string& change, const std::vector<std::string>& modes,
+                              const DecomposeOptions& options) {
   return {{"change", change},
+          {"failure_modes", modes},
           {"corner_twist_deg", options.placement.corner_twist_deg},
-          {"even_perimeter", options.placement.even_perimeter},
-          {"contact_depth_min", options.contact_depth_min},
-          {"cast_rim", options.cast_rim},
           {"landmark_strip", options.strip.join},
           {"meridian_rings", options.placement.meridian_rings},
-          {"edge_cell", options.edge_cell},
-          {"placement_end_share", options.placement_end_share}};
+          {"edge_cell", options.edge_cell}};
 }
 
-// One entry of the report's `attempts`: what the attempt changed and how its check came out.
-nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& options, const DecomposeReport& r) {
+// One entry of the report's `attempts`: what the try changed and how its check came out.
+nlohmann::json attempt_json(const std::string& change, const std::vector<std::string>& modes,
+                            const DecomposeOptions& options, const DecomposeReport& r) {
   const CheckReport& q = r.quality;
-  nlohmann::json j = attempt_header(change, options);
+  nlohmann::json j = attempt_header(change, modes, options);
   j["status"] = r.status;
   j["failed"] = q.failed;
   j["inside_fraction"] = q.inside_fraction;
   j["inverted_cells"] = q.inverted_cells;
   j["coverage_p95"] = q.coverage.p95;
   j["attachment_max"] = std::max(q.attachment.origin_max, q.attachment.insertion_max);
+  j["layer_ratio"] = q.steps.layer_ratio;
   j["free_ring_tried"] = free_ring_tried(r);
   j["seconds"] = r.seconds;
   return j;
@@ -951,13 +944,19 @@ nlohmann::json attempt_json(const std::string& change, const DecomposeOptions& o
 
 }  // namespace
 
-DecomposeOptions alternative_placement(const DecomposeOptions& options) {
-  DecomposeOptions alternative = options;
-  alternative.placement.even_perimeter = !options.placement.even_perimeter;
-  alternative.contact_depth_min =
-      options.contact_depth_min < options.contact_depth ? options.contact_depth : std::min(0.05, options.contact_depth);
-  alternative.retry_alternative = false;
-  return alternative;
+SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes) {
+  const auto shows = [&](const char* mode) { return std::find(modes.begin(), modes.end(), mode) != modes.end(); };
+  SecondTry out{"", first};
+  const auto add = [&](const char* change) { out.change += (out.change.empty() ? "" : "+") + std::string(change); };
+  if ((shows("folds") || shows("uneven_layers")) && first.placement.band_by_length && !first.placement.meridian_rings) {
+    out.options.placement.meridian_rings = true;
+    add("meridian_rings");
+  }
+  if (shows("coverage") && first.edge_cell > 0.5) {
+    out.options.edge_cell = 0.5;
+    add("narrow_edge_cells");
+  }
+  return out;
 }
 
 bool better_result(const CheckReport& a, const CheckReport& b) {
@@ -968,156 +967,6 @@ bool better_result(const CheckReport& a, const CheckReport& b) {
   return a.coverage.p95 < b.coverage.p95;
 }
 
-std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmarks_given) {
-  std::vector<RetryStep> plan;
-  if (options.retry_alternative) plan.push_back({"alternative_placement", alternative_placement(options), true, false});
-  // The face rims left where the placement put them: casting them opens the folds next to narrow
-  // ends but folds a few muscles that pass with the rims left. Gated as the alternative is: after a
-  // badly folded first try it has not helped (DecomposeOptions::retry_max_inverted_cells).
-  if (options.retry_alternative && options.cast_rim) {
-    DecomposeOptions retry = options;
-    retry.cast_rim = false;
-    plan.push_back({"rim_left", retry, true, false});
-  }
-  if (landmarks_given)
-    for (double twist : options.landmark_twists_deg) {
-      DecomposeOptions retry = options;
-      retry.placement.corner_twist_deg = twist;
-      plan.push_back({"corner_twist", retry, false, false});
-    }
-  // Automatic areas: a smaller share of them for the placement (the check keeps the full areas).
-  if (!landmarks_given && options.end_share_retry > 0.0) {
-    DecomposeOptions retry = options;
-    retry.placement_end_share = options.placement_end_share * options.end_share_retry;
-    plan.push_back({"end_share", retry, false, false});
-  }
-  for (RetryStep& step : plan) {
-    step.options.retry_alternative = false;
-    step.options.landmark_twists_deg.clear();
-    step.options.end_share_retry = 0.0;
-  }
-  // Landmark strips that fail every try: the whole plan again with the landmark disks.
-  if (landmarks_given && options.strip.join && options.strip.disk_fallback) {
-    DecomposeOptions disks = options;
-    disks.strip.join = false;
-    DecomposeOptions first = disks;
-    first.retry_alternative = false;
-    first.landmark_twists_deg.clear();
-    plan.push_back({"landmark_disks", first, false, true});
-    for (RetryStep& step : retry_plan(disks, true)) {
-      step.change = "landmark_disks_" + step.change;
-      plan.push_back(std::move(step));
-    }
-  }
-  return plan;
-}
-
-namespace {
-
-// A first try with `options` (its attempt named `first_change`), then the retry plan and the
-// meridian tries (step 9): every attempt, the index of the one kept, their seconds.
-struct PlanResult {
-  Decomposition best;
-  nlohmann::json attempts = nlohmann::json::array();
-  int kept = 0;
-  double seconds = 0.0;
-};
-
-PlanResult run_plan(const TriangleMesh& muscle, const SurfaceQuery& query, const MuscleSphere& sphere,
-                    const PreparedLattice& prepared, const Landmarks& landmarks, const DecomposeOptions& options,
-                    ComputeCache& compute, const std::string& first_change) {
-  PlanResult out;
-  Decomposition& best = out.best;
-  nlohmann::json& attempts = out.attempts;
-  int& kept = out.kept;
-  double& seconds = out.seconds;
-  best = decompose_attempt(muscle, query, sphere, prepared, landmarks, options, compute);
-  attempts.push_back(attempt_json(first_change, options, best.report));
-  seconds = best.report.seconds;
-  DecomposeOptions kept_options = options;  // the options of the kept result
-  // Inverted cells of the first try of the current sequence (the strips', then the disks'), and
-  // whether its folds outlasted the untangling with the surface ring freed.
-  long first_inverted = best.report.quality.inverted_cells;
-  const auto ring_freed = [](const Decomposition& d) {
-    return d.report.quality.inverted_cells > 0 && free_ring_tried(d.report);
-  };
-  bool first_ring_freed = ring_freed(best);
-  for (const RetryStep& step : retry_plan(options, landmarks.given())) {
-    const std::string& change = step.change;
-    const DecomposeOptions& retry = step.options;
-    if (best.report.quality.pass) break;
-    if (step.gated && (first_inverted > options.retry_max_inverted_cells || first_ring_freed)) {
-      attempts.push_back(
-          {{"change", change},
-           {"status", "skipped"},
-           {"why", first_inverted > options.retry_max_inverted_cells
-                       ? "the first result has more than retry_max_inverted_cells (" +
-                             std::to_string(options.retry_max_inverted_cells) + ") inverted cells"
-                       : "the first result's folds outlasted the untangling with the surface ring free"}});
-      continue;
-    }
-    try {
-      if (options.progress) options.progress("try " + std::to_string(attempts.size() + 1) + " (" + change + ")");
-      Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, compute);
-      if (step.starts_sequence) {
-        first_inverted = d.report.quality.inverted_cells;
-        first_ring_freed = ring_freed(d);
-      }
-      attempts.push_back(attempt_json(change, retry, d.report));
-      seconds += d.report.seconds;
-      if (better_result(d.report.quality, best.report.quality)) {
-        best = std::move(d);
-        kept = static_cast<int>(attempts.size()) - 1;
-        kept_options = retry;
-      }
-    } catch (const Error& e) {
-      nlohmann::json failed = attempt_header(change, retry);
-      failed["status"] = "error";
-      failed["error"] = e.what();
-      attempts.push_back(std::move(failed));
-    }
-  }
-  // A layer of fibre segments several times the others (the rings skipped a stretch of the
-  // muscle, as where a tendon hooks): the first try once more with the rings placed by meridian,
-  // and, unless that is kept and passes, the kept try's options with them too (which of the two
-  // passes can depend on round-off).
-  const auto layers = [](const Decomposition& d) { return d.report.quality.steps.layer_ratio; };
-  if (options.even_layers_ratio > 0.0 && options.placement.band_by_length && !options.placement.meridian_rings &&
-      layers(best) > options.even_layers_ratio) {
-    std::vector<DecomposeOptions> tries{options};
-    if (kept != 0) tries.push_back(kept_options);
-    for (DecomposeOptions retry : tries) {
-      retry.placement.meridian_rings = true;
-      retry.retry_alternative = false;
-      retry.landmark_twists_deg.clear();
-      retry.end_share_retry = 0.0;
-      try {
-        Decomposition d = decompose_attempt(muscle, query, sphere, prepared, landmarks, retry, compute);
-        attempts.push_back(attempt_json("meridian_rings", retry, d.report));
-        attempts.back()["layer_ratio"] = layers(d);
-        seconds += d.report.seconds;
-        const CheckReport& a = d.report.quality;
-        const CheckReport& b = best.report.quality;
-        const bool evener = a.pass && b.pass && layers(d) < layers(best) &&
-                            a.max_segment_excursion_relative <= b.max_segment_excursion_relative;
-        if (evener || better_result(a, b)) {
-          best = std::move(d);
-          kept = static_cast<int>(attempts.size()) - 1;
-          if (best.report.quality.pass) break;
-        }
-      } catch (const Error& e) {
-        nlohmann::json failed = attempt_header("meridian_rings", retry);
-        failed["status"] = "error";
-        failed["error"] = e.what();
-        attempts.push_back(std::move(failed));
-      }
-    }
-  }
-  return out;
-}
-
-}  // namespace
-
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options) {
   options.validate();
@@ -1126,11 +975,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   // each is mostly one thread's work.
   std::optional<SurfaceQuery> built_query;
   MuscleSphere sphere;
-  // A first try with narrow edge cells falls back to even ones: both lattices prepared.
-  const bool narrow_first = options.edge_cell < 1.0 && options.edge_cell_fallback;
-  DecomposeOptions even = options;
-  even.edge_cell = 1.0;
-  PreparedLattice prepared, prepared_even;
+  PreparedLattice prepared;
   double query_seconds = 0.0;
   if (options.progress) options.progress("map onto the sphere");
   tbb::parallel_invoke(
@@ -1140,7 +985,6 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
         built_query->inside_grid();
         query_seconds = since(t);
         prepared = prepare_lattice(options);  // the sphere map takes longer than the query
-        if (narrow_first) prepared_even = prepare_lattice(even);
       },
       [&] {
         const auto t = Clock::now();
@@ -1151,78 +995,69 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   const SurfaceQuery& query = *built_query;
   const double setup_seconds = since(start);
   ComputeCache compute(options.backend);
-  PlanResult plan;
-  if (narrow_first) {
-    // Narrow edge cells first, without the untangling's free-ring attempts; a result that passes
-    // with even layers is kept, else the whole plan runs with even edge cells and the better
-    // result is kept.
-    // An error of that try (a settle that diverged) is reported and falls back too.
-    DecomposeOptions narrow = options;
-    narrow.untangle.free_ring = false;
-    std::optional<Decomposition> first;
-    nlohmann::json first_json;
+
+  // The tries (fibres/try_policy.h): the options as given, then at most one more, made from the
+  // first's failure modes. An error of the first try is the decomposition's; of the second, it is
+  // reported and the first result kept.
+  struct Try {
+    std::string change;
+    std::vector<std::string> modes;  // the first try's failure modes that called this one
+    DecomposeOptions options;
+  };
+  std::vector<Try> tries{{"none", {}, options}};
+  nlohmann::json attempts = nlohmann::json::array();
+  Decomposition best;
+  int kept = 0;
+  double seconds = 0.0;
+  for (std::size_t i = 0; i < tries.size(); ++i) {
+    const Try& t = tries[i];
+    if (i > 0 && options.progress) options.progress("try " + std::to_string(i + 1) + " (" + t.change + ")");
+    std::optional<Decomposition> d;
     try {
-      first = decompose_attempt(muscle, query, sphere, prepared, landmarks, narrow, compute);
-      first_json = attempt_json("none", narrow, first->report);
-    } catch (const Error& e) {
-      first_json = attempt_header("none", narrow);
-      first_json["status"] = "error";
-      first_json["error"] = e.what();
-    }
-    const bool uneven = options.even_layers_ratio > 0.0 && options.placement.band_by_length &&
-                        !options.placement.meridian_rings && first &&
-                        first->report.quality.steps.layer_ratio > options.even_layers_ratio;
-    if (first && first->report.quality.pass && !uneven) {
-      plan.best = std::move(*first);
-      plan.attempts.push_back(first_json);
-      plan.seconds = plan.best.report.seconds;
-    } else {
-      plan = run_plan(muscle, query, sphere, prepared_even, landmarks, even, compute, "even_edge_cells");
-      plan.attempts.insert(plan.attempts.begin(), first_json);
-      ++plan.kept;
-      if (first) {
-        plan.seconds += first->report.seconds;
-        if (better_result(first->report.quality, plan.best.report.quality)) {
-          plan.best = std::move(*first);
-          plan.kept = 0;
-        }
-      }
-    }
-  } else {
-    plan = run_plan(muscle, query, sphere, prepared, landmarks, options, compute, "none");
-  }
-  // Landmark areas that failed every try: the plan once more with meridian rings and narrow edge
-  // cells, the better result kept.
-  if (landmarks.given() && options.landmark_narrow_retry && !plan.best.report.quality.pass &&
-      options.edge_cell >= 1.0 && !options.placement.meridian_rings) {
-    DecomposeOptions narrow = options;
-    narrow.placement.meridian_rings = true;
-    narrow.edge_cell = 0.5;
-    narrow.edge_cell_fallback = false;
-    narrow.even_layers_ratio = 0.0;
-    try {
-      const PreparedLattice prepared_narrow = prepare_lattice(narrow);
-      PlanResult extra = run_plan(muscle, query, sphere, prepared_narrow, landmarks, narrow, compute, "landmark_narrow");
-      const int offset = static_cast<int>(plan.attempts.size());
-      for (auto& attempt : extra.attempts) plan.attempts.push_back(std::move(attempt));
-      plan.seconds += extra.seconds;
-      if (better_result(extra.best.report.quality, plan.best.report.quality)) {
-        plan.best = std::move(extra.best);
-        plan.kept = offset + extra.kept;
+      if (same_lattice(lattice_options_of(t.options), prepared.options)) {
+        d = decompose_attempt(muscle, query, sphere, prepared, landmarks, t.options, compute);
+      } else {
+        const PreparedLattice own = prepare_lattice(t.options);
+        d = decompose_attempt(muscle, query, sphere, own, landmarks, t.options, compute);
       }
     } catch (const Error& e) {
-      nlohmann::json failed = attempt_header("landmark_narrow", narrow);
+      if (i == 0) throw;
+      nlohmann::json failed = attempt_header(t.change, t.modes, t.options);
       failed["status"] = "error";
       failed["error"] = e.what();
-      plan.attempts.push_back(std::move(failed));
+      attempts.push_back(std::move(failed));
+      continue;
+    }
+    attempts.push_back(attempt_json(t.change, t.modes, t.options, d->report));
+    seconds += d->report.seconds;
+    if (i == 0) {
+      best = std::move(*d);
+      const std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
+      if (options.tries.second_try && !modes.empty()) {
+        SecondTry second = second_try(options, modes);
+        if (second.change.empty())
+          attempts.back()["second_try"] = "none: no change addresses " + nlohmann::json(modes).dump();
+        else
+          tries.push_back({second.change, modes, std::move(second.options)});
+      }
+      continue;
+    }
+    // Uneven layers alone (a first try that passes): the evener of two that pass, unless its
+    // segments leave the muscle farther.
+    const CheckReport& a = d->report.quality;
+    const CheckReport& b = best.report.quality;
+    const bool evener = a.pass && b.pass && a.steps.layer_ratio < b.steps.layer_ratio &&
+                        a.max_segment_excursion_relative <= b.max_segment_excursion_relative;
+    if (evener || better_result(a, b)) {
+      best = std::move(*d);
+      kept = static_cast<int>(i);
     }
   }
-  Decomposition best = std::move(plan.best);
-  best.report.attempts = std::move(plan.attempts);
-  best.report.kept_attempt = plan.kept;
+  best.report.attempts = std::move(attempts);
+  best.report.kept_attempt = kept;
   best.report.query_seconds = query_seconds;
   best.report.sphere_seconds = sphere.seconds;
-  best.report.seconds = setup_seconds + plan.seconds;
+  best.report.seconds = setup_seconds + seconds;
   return best;
 }
 

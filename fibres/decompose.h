@@ -44,8 +44,9 @@
 /// With a crossing template (unipennate, bipennate) the lattice is the parallel one and step 11's
 /// fibres are drawn through it instead (fibres/pennate_fibres.h, which smooths them itself), checked against the areas they
 /// span, the lattice judged as a map (no folded cell, every point inside).
-/// A result that fails the check is made again with the options of retry_plan() (the alternative
-/// placement; with landmark areas other corner twists) and the best kept (better_result()).
+/// At most two tries (fibres/try_policy.h): a first with the options as given, and a second,
+/// with second_try()'s options, only where the first shows a failure mode that the second's
+/// change addresses; the better result is kept (better_result()).
 #include "fibres/align_ends.h"
 #include "fibres/architecture.h"
 #include "fibres/contain_segments.h"
@@ -54,6 +55,7 @@
 #include "fibres/pennate_fibres.h"
 #include "fibres/smooth_fibres.h"
 #include "fibres/template_placement.h"
+#include "fibres/try_policy.h"
 #include "fibres/untangle_lattice.h"
 #include "geometry/mesh.h"
 #include "morph/attachments.h"
@@ -115,7 +117,7 @@ struct DecomposeOptions {
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< contact target depth, in local spacings, (0, 1) (default 0.3)
   /// Least contact depth: a point just outside goes 3x its distance out, clamped to [this, contact_depth],
-  /// (0, contact_depth] (default 0.3; the retry uses 0.05: a deep target can push a point past neighbours).
+  /// (0, contact_depth] (default 0.3: a deep target can push a point past its neighbours).
   double contact_depth_min = 0.3;
   bool untangle_cells = true;  ///< unfold the cells the settle leaves inverted (step 7) (default true)
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
@@ -125,12 +127,6 @@ struct DecomposeOptions {
   /// the fibre segments that leave the muscle between their points back inside (step 7; default true;
   /// not with a crossing template, whose fibres do not run along the lattice lines).
   bool contact_segments = true;
-  /// On a failed check, decompose again with alternative_placement() and keep the better result
-  /// (default true: folds depend on the placement's free choices, and often differ between the two).
-  bool retry_alternative = true;
-  /// Skip the alternative placement and the rims left when the first result has more inverted cells
-  /// (or outlasted the free-ring untangling), >= 0 (default 50: such results seldom pass on a retry).
-  long retry_max_inverted_cells = 50;
   /// Each fibre's sharp joints smoothed along it after the segment moves, under the check's guards
   /// (fibres/smooth_fibres.h; default 10 steps, weight 0.5, joints over 30 degrees; steps 0: none).
   FibreSmoothingOptions smoothing;
@@ -148,27 +144,16 @@ struct DecomposeOptions {
   /// The final check (default_check()): the criteria of fibres/fibre_check.h with the segments,
   /// turning and ends figures reported but not judged.
   CheckOptions check = default_check();
-  /// Landmark areas only: corner twists (degrees, [-180, 180]) tried in turn after a failed check, the
-  /// first pass kept (default {0, 67.5, 22.5}: near landmark poles the twist's reference is unreliable).
-  std::vector<double> landmark_twists_deg = {0.0, 67.5, 22.5};
   /// Automatic areas only: share of attachments.end_fraction the lattice ends are placed on, (0, 1]
   /// (default 1); the check still uses the full areas, so `fascicle check` passes the same result.
   double placement_end_share = 1.0;
-  /// Automatic areas only: on a failed check, retry with placement_end_share times this, (0, 1) or 0
-  /// for none (default 0.8: smaller areas keep the ends off a hooked tendon); not gated by cell counts.
-  double end_share_retry = 0.8;
-  /// Retry with meridian rings (PlacementOptions::meridian_rings) when the longest segment layer is over
-  /// this times the median (the rings skipped a stretch of muscle), >= 1 or 0 for none (default 2.5).
-  double even_layers_ratio = 2.5;
   /// Width of the cells between the surface ring and the outermost fibres, in fibre spacings, (0, 1]
-  /// (default 1; 0.5 centres each fibre in its share of the cross-section but folds more muscles).
+  /// (default 1; 0.5, the second try for a coverage gap, brings the outermost fibres half a spacing
+  /// from the surface but folds more muscles).
   double edge_cell = 1.0;
-  /// With edge_cell < 1: when the first try fails (or its layer ratio is too high), run the whole plan
-  /// with edge cells of 1, keep the better (default true; the first try then skips free-ring attempts).
-  bool edge_cell_fallback = true;
-  /// Landmark areas only: when every try fails, run the plan once more with meridian rings and edge
-  /// cells of 0.5 (default true: it rescues strips that run down the muscle's side and hooked ends).
-  bool landmark_narrow_retry = true;
+  /// When the decomposition is tried a second time (fibres/try_policy.h; default: once more where
+  /// the first shows folds, uneven layers or a coverage gap).
+  TryPolicy tries;
   /// Not a setting: called with each stage's short description as it starts ("repair", "try 2:
   /// settle") for progress; empty: nothing is called (default).
   std::function<void(const std::string& stage)> progress;
@@ -212,8 +197,8 @@ struct DecomposeReport {
   nlohmann::json pennate;
   CheckReport quality;
   Architecture architecture;  ///< of the fibres returned (fibres/architecture.h)
-  /// One entry per whole decomposition tried (corner twist, status, failed criteria, figures,
-  /// seconds), in order, and which was kept (DecomposeOptions::landmark_twists_deg).
+  /// One entry per whole decomposition tried (what it changed, status, failed criteria, failure
+  /// modes, figures, seconds), in order (at most two, fibres/try_policy.h), and which was kept.
   nlohmann::json attempts = nlohmann::json::array();
   int kept_attempt = 0;  ///< index into `attempts` of the result returned
   std::string renderer;  ///< OpenGL renderer when the GPU settled, else empty
@@ -233,32 +218,16 @@ struct Decomposition {
   DecomposeReport report;
 };
 
-/// The options of the second try of a failed decomposition: `options` with the placement's
-/// even_perimeter switched, contact_depth_min switched between 0.05 (or contact_depth, if
-/// smaller) and contact_depth (shallow contact targets on or off), and no further retry.
-DecomposeOptions alternative_placement(const DecomposeOptions& options);
-
-/// The retries of a decomposition that fails the check, in order, each with what it changes:
-/// "alternative_placement" (alternative_placement(), when options.retry_alternative), then
-/// "rim_left" (options with cast_rim false, when options.retry_alternative and cast_rim), then with
-/// landmark areas one "corner_twist" per options.landmark_twists_deg entry, with automatic areas
-/// "end_share" (placement_end_share times options.end_share_retry, when that is not 0); then, with landmark
-/// areas joined into strips and options.strip.disk_fallback, "landmark_disks" (the first try with
-/// the strips off) and the same plan again with the strips off, each change prefixed
-/// "landmark_disks_". Retries do not retry. (After the plan, decompose may add "meridian_rings"
-/// tries, DecomposeOptions::even_layers_ratio, and with landmark areas that failed every try the
-/// whole plan again from "landmark_narrow", DecomposeOptions::landmark_narrow_retry.)
-struct RetryStep {
-  std::string change;        ///< what the step changes (the names above), for the report
-  DecomposeOptions options;  ///< the options of the whole decomposition tried
-  /// Skipped when the first try of its sequence (the first try, or "landmark_disks") has more
-  /// inverted cells than DecomposeOptions::retry_max_inverted_cells (the alternative placements
-  /// and the rims left; the corner twists are not: they change the lattice's whole turn).
-  bool gated = false;
-  /// Its result is the first try of a new sequence (the landmark disks' first try).
-  bool starts_sequence = false;
+/// The second try after a first whose check shows `modes` (failure_modes(), fibres/try_policy.h):
+/// `first` with the rings placed by meridian for "folds" and "uneven_layers" (with band_by_length,
+/// where the first placed them by levels) and edge cells of 0.5 for "coverage" (where the first's
+/// were wider). `change` names what changed ("meridian_rings", "narrow_edge_cells", or both joined
+/// by "+"), empty when nothing applies: then there is no second try.
+struct SecondTry {
+  std::string change;
+  DecomposeOptions options;
 };
-std::vector<RetryStep> retry_plan(const DecomposeOptions& options, bool landmarks_given);
+SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
 /// inverted cells, a larger inside fraction, a lower coverage p95 (the first of equals is kept).
@@ -271,14 +240,14 @@ bool better_result(const CheckReport& a, const CheckReport& b);
 /// turn this way (step 6).
 int lattice_handedness(const springs::SpringSystem& system, const springs::Lattice& lattice);
 
-/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-9; while the result
-/// fails the check, again with each of retry_plan()'s options in turn (the alternative placement,
-/// the face rims left, then, with landmark areas, the corner twists of options.landmark_twists_deg), keeping the best
-/// result by better_result() (the report's `attempts` lists every try, `kept_attempt` the one
-/// returned). Throws InputError(landmarks) for far landmarks or coinciding areas, OptionError for
-/// bad options, SolverError when the sphere map is not a bijection or the settle diverges,
-/// Error(gpu) for GPU failures; an exception in a retry (not the first attempt) is recorded
-/// in `attempts` and that retry skipped.
+/// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-11, then, where the
+/// first result shows a failure mode of fibres/try_policy.h, once more with second_try()'s options,
+/// keeping the better result by better_result() (or, both passing with uneven layers first, the
+/// evener); the report's `attempts` lists both tries with the failure modes, `kept_attempt` the one
+/// returned. Throws InputError(landmarks) for far landmarks or coinciding areas, OptionError for
+/// bad options, SolverError when the sphere map is not a bijection or the first settle diverges,
+/// Error(gpu) for GPU failures; an exception in the second try is recorded in `attempts` and the
+/// first result returned.
 Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& landmarks,
                                  const DecomposeOptions& options = {});
 

@@ -30,9 +30,6 @@ struct StripOptions {
   /// Spacing of the points added along a join, share of the muscle length, (0, 0.1] (default
   /// 0.004: well under the region radius of 0.01, so that the disks round the points overlap).
   double step = 0.004;
-  /// When every try with strips fails, rerun the retry plan with landmark disks (join off), keep the best
-  /// (default true: never worse than without strips; costs up to twice the tries on a failing muscle).
-  bool disk_fallback = true;
   /// Areas with more points than this are left as they are (dense enough, and the spanning tree
   /// costs the square of the count), >= 2 (default 4096).
   int max_points = 4096;

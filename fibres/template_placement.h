@@ -68,13 +68,13 @@ struct PlacementOptions {
   /// (default true: keeps the layers flat where the muscle narrows to a tendon).
   bool band_by_length = true;
   /// With band_by_length: each ring point at the same share of its own meridian's length (true) or
-  /// one sphere-map level per ring (false) (default false; decompose retries with it, even_layers_ratio).
+  /// one sphere-map level per ring (false) (default false; the second try for folds and uneven layers, fibres/try_policy.h).
   bool meridian_rings = false;
   /// Azimuth (degrees) of the template's r axis from the muscle's second principal axis, [-180, 180]
   /// (default 45: lattice corners on the broad axis; with 0 the lattice shuns a flat muscle's thin edge).
   double corner_twist_deg = 45.0;
   /// Ring points at even shares of each cross-section's perimeter (true) or at the azimuth plus the
-  /// twist (false) (default false; the retry switches it: even shares keep corners off thin edges).
+  /// twist (false) (default false).
   bool even_perimeter = false;
   /// Landmark areas only: region centre at the vertex farthest from the other area among those at
   /// least this share of the deepest from the border, (0, 1] (default 0.35; 1: the deepest vertex).

@@ -1,6 +1,6 @@
 #pragma once
 // One `fascicle decompose` run of a corpus muscle for the tests that read its report: the fibres
-// kept when the check fails (--keep-failed) and the first attempt only (--retry false), so that a
+// kept when the check fails (--keep-failed) and the first try only (--second-try false), so that a
 // test sees the attempt its feature changes. Include after catch2 and tests/test_common.h.
 #include "tests/test_common.h"
 
@@ -18,7 +18,7 @@ inline nlohmann::json decompose_report(const std::string& muscle, const std::str
                                        const std::string& extra) {
   const std::string report = out_dir + "/m.json";
   const int code = run_command(program() + " -q decompose " + muscle + " -o " + out_dir + "/m.vtk --report " + report +
-                               " --keep-failed --retry false " + extra + " 2>/dev/null");
+                               " --keep-failed --second-try false " + extra + " 2>/dev/null");
   INFO(muscle << " " << extra);
   CHECK((code == 0 || code == 19));
   std::ifstream in(report);

@@ -186,19 +186,23 @@ TEST_CASE("a result with a long layer is decomposed once more with meridian ring
   // Any layer ratio above 1 asks for the meridian try; 0 never does.
   const TriangleMesh mesh = capsule();
   DecomposeOptions options;
-  options.even_layers_ratio = 1.0;
+  options.tries.even_layers_ratio = 1.0;
   const Decomposition d = decompose_repaired(mesh, Landmarks{}, options);
   const nlohmann::json& attempts = d.report.attempts;
   REQUIRE(attempts.size() == 2);
   CHECK(attempts[0]["change"] == "none");
   CHECK(attempts[0]["meridian_rings"] == false);
   CHECK(attempts[1]["change"] == "meridian_rings");
+  CHECK(attempts[1]["failure_modes"] == nlohmann::json{"uneven_layers"});
   CHECK(attempts[1]["meridian_rings"] == true);
   CHECK(attempts[1]["layer_ratio"].get<double>() >= 1.0);
   // The kept one: the meridian try when it is better or passes with evener layers.
   if (d.report.kept_attempt == 1) CHECK(d.report.quality.steps.layer_ratio == attempts[1]["layer_ratio"].get<double>());
   CHECK(d.report.quality.pass);
-  options.even_layers_ratio = 0.0;
+  options.tries.even_layers_ratio = 0.0;
+  CHECK(decompose_repaired(mesh, Landmarks{}, options).report.attempts.size() == 1);
+  options.tries.even_layers_ratio = 1.0;
+  options.tries.second_try = false;
   CHECK(decompose_repaired(mesh, Landmarks{}, options).report.attempts.size() == 1);
 }
 
@@ -212,7 +216,7 @@ TEST_CASE("narrow edge cells bring the outer fibres nearer the surface", "[fibre
   const Decomposition narrow = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(even.report.quality.pass);
   REQUIRE(narrow.report.quality.pass);
-  REQUIRE(narrow.report.attempts.size() == 1);  // passed on the first try: no fallback
+  REQUIRE(narrow.report.attempts.size() == 1);  // passed on the first try
   CHECK(narrow.report.attempts[0]["edge_cell"] == 0.5);
   CHECK(even.report.attempts[0]["edge_cell"] == 1.0);
   CHECK(narrow.report.quality.coverage.p95 < 0.9 * even.report.quality.coverage.p95);
@@ -225,26 +229,6 @@ TEST_CASE("narrow edge cells bring the outer fibres nearer the surface", "[fibre
     return sum / static_cast<double>(n);
   };
   CHECK(mean_radius(narrow) > mean_radius(even));
-
-  // A first try that is not good enough (here: any layer ratio above 1 asks for evener layers)
-  // falls back to even edge cells and the whole plan; the better result is kept.
-  options.even_layers_ratio = 1.0;
-  const Decomposition fallback = decompose_repaired(mesh, Landmarks{}, options);
-  const nlohmann::json& attempts = fallback.report.attempts;
-  REQUIRE(attempts.size() >= 2);
-  CHECK(attempts[0]["change"] == "none");
-  CHECK(attempts[0]["edge_cell"] == 0.5);
-  CHECK(attempts[1]["change"] == "even_edge_cells");
-  CHECK(attempts[1]["edge_cell"] == 1.0);
-  for (std::size_t i = 2; i < attempts.size(); ++i) CHECK(attempts[i]["edge_cell"] == 1.0);
-  CHECK(fallback.report.kept_attempt >= 0);
-  CHECK(fallback.report.kept_attempt < static_cast<int>(attempts.size()));
-  CHECK(fallback.report.quality.pass);
-  // Without the fallback every try has the narrow cells.
-  options.edge_cell_fallback = false;
-  const Decomposition narrow_only = decompose_repaired(mesh, Landmarks{}, options);
-  for (const auto& attempt : narrow_only.report.attempts) CHECK(attempt["edge_cell"] == 0.5);
-  CHECK(narrow_only.report.attempts[0]["change"] == "none");
 
   DecomposeOptions bad;
   bad.edge_cell = 0.0;
@@ -551,116 +535,79 @@ TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[
   CHECK(even_ratio < 3.0);
 }
 
-TEST_CASE("a decomposition that fails the check is tried again with the alternative placement", "[fibres][decompose]") {
+TEST_CASE("a decomposition is tried at most twice, the second time for a named failure mode", "[fibres][decompose]") {
+  // The failure modes of a check (fibres/try_policy.h), each from its criterion.
+  TryPolicy policy;
+  CheckReport passed;
+  passed.pass = true;
+  CHECK(failure_modes(passed, policy).empty());
+  CheckReport folded;
+  folded.failed = {"inverted_cells", "coverage"};
+  CHECK(failure_modes(folded, policy) == std::vector<std::string>{"folds", "coverage"});
+  CheckReport uneven = passed;
+  uneven.steps.layer_ratio = 3.0;
+  CHECK(failure_modes(uneven, policy) == std::vector<std::string>{"uneven_layers"});
+  policy.even_layers_ratio = 0.0;
+  CHECK(failure_modes(uneven, policy).empty());
+  CheckReport attachment;
+  attachment.failed = {"attachment"};  // no second try addresses it
+  CHECK(failure_modes(attachment, TryPolicy{}).empty());
+  // The second try's options: meridian rings for folds and uneven layers, narrow edge cells for
+  // a coverage gap; nothing where the first had them already.
   DecomposeOptions options;
-  const DecomposeOptions alternative = alternative_placement(options);
-  CHECK(alternative.placement.even_perimeter != options.placement.even_perimeter);
-  CHECK(alternative.contact_depth_min != options.contact_depth_min);
-  CHECK_FALSE(alternative.retry_alternative);
-  CHECK(alternative_placement(alternative).placement.even_perimeter == options.placement.even_perimeter);
-  CHECK(alternative_placement(alternative).contact_depth_min == options.contact_depth_min);
-  CHECK_NOTHROW(alternative.validate());
+  const SecondTry both = second_try(options, {"folds", "coverage"});
+  CHECK(both.change == "meridian_rings+narrow_edge_cells");
+  CHECK(both.options.placement.meridian_rings);
+  CHECK(both.options.edge_cell == 0.5);
+  CHECK_NOTHROW(both.options.validate());
+  CHECK(second_try(options, {"uneven_layers"}).change == "meridian_rings");
+  CHECK(second_try(options, {"uneven_layers"}).options.edge_cell == options.edge_cell);
+  CHECK(second_try(options, {"coverage"}).change == "narrow_edge_cells");
+  CHECK_FALSE(second_try(options, {"coverage"}).options.placement.meridian_rings);
+  CHECK(second_try(both.options, {"folds", "coverage"}).change.empty());
+  DecomposeOptions by_area = options;
+  by_area.placement.band_by_length = false;  // meridian rings need rings by length
+  CHECK(second_try(by_area, {"folds"}).change.empty());
+
   // A capsule passes at once: no second try.
   const TriangleMesh mesh = capsule();
   const Decomposition once = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(once.report.quality.pass);
   CHECK(once.report.attempts.size() == 1);
   CHECK(once.report.to_json()["attempts"].size() == 1);
-  // A coverage limit no lattice meets: both tries fail, the report says which result it kept
-  // (the better one).
+  // A coverage limit no lattice meets: the second try with narrow edge cells, both fail, the
+  // report says which it kept (the better one) and why the second ran.
   options.check.max_coverage_p95 = 1e-6;
   const Decomposition twice = decompose_repaired(mesh, Landmarks{}, options);
   CHECK_FALSE(twice.report.quality.pass);
   const nlohmann::json attempts = twice.report.to_json()["attempts"];
   INFO(attempts.dump());
-  REQUIRE(attempts.size() == 4);
+  REQUIRE(attempts.size() == 2);
   CHECK(attempts[0]["change"] == "none");
   CHECK(attempts[0]["status"] == "failed");
-  CHECK(attempts[1]["change"] == "alternative_placement");
-  CHECK(attempts[1]["even_perimeter"] == alternative.placement.even_perimeter);
+  CHECK(attempts[0]["edge_cell"] == 1.0);
+  CHECK(attempts[1]["change"] == "narrow_edge_cells");
+  CHECK(attempts[1]["failure_modes"] == nlohmann::json{"coverage"});
+  CHECK(attempts[1]["edge_cell"] == 0.5);
   CHECK(attempts[1]["status"] == "failed");
-  CHECK(attempts[2]["change"] == "rim_left");
-  CHECK(attempts[2]["status"] == "failed");
-  CHECK(attempts[3]["change"] == "end_share");
-  CHECK(attempts[3]["placement_end_share"] == options.end_share_retry);
-  CHECK(attempts[3]["status"] == "failed");
   const int kept = twice.report.kept_attempt;
-  REQUIRE((kept >= 0 && kept <= 3));
-  for (int other = 0; other < 4; ++other)
-    CHECK(attempts[kept]["inverted_cells"].get<long>() <= attempts[other]["inverted_cells"].get<long>());
+  REQUIRE((kept == 0 || kept == 1));
   CHECK(attempts[kept]["coverage_p95"].get<double>() == twice.report.quality.coverage.p95);
+  CHECK(attempts[kept]["coverage_p95"].get<double>() <= attempts[1 - kept]["coverage_p95"].get<double>());
   CHECK(twice.report.placement.is_object());
-  options.retry_alternative = false;
-  options.end_share_retry = 0.0;
-  const Decomposition no_retry = decompose_repaired(mesh, Landmarks{}, options);
-  CHECK(no_retry.report.attempts.size() == 1);
-  CHECK(no_retry.report.quality.coverage.p95 == Approx(once.report.quality.coverage.p95));
+  // A failure mode with nothing left to change: one try, and the report says so.
+  DecomposeOptions narrow = options;
+  narrow.edge_cell = 0.5;
+  const Decomposition no_change = decompose_repaired(mesh, Landmarks{}, narrow);
+  REQUIRE(no_change.report.attempts.size() == 1);
+  CHECK(no_change.report.attempts[0]["second_try"].get<std::string>().find("coverage") != std::string::npos);
+  options.tries.second_try = false;
+  const Decomposition one = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(one.report.attempts.size() == 1);
+  CHECK(one.report.quality.coverage.p95 == Approx(once.report.quality.coverage.p95));
 }
 
-TEST_CASE("retry plan and the ranking of results", "[fibres][decompose]") {
-  DecomposeOptions options;
-  options.landmark_twists_deg = {0.0, 67.5};
-  const auto automatic = retry_plan(options, false);
-  REQUIRE(automatic.size() == 3);
-  CHECK(automatic[0].change == "alternative_placement");
-  CHECK(automatic[0].options.cast_rim);
-  CHECK(automatic[1].change == "rim_left");
-  CHECK_FALSE(automatic[1].options.cast_rim);
-  CHECK(automatic[1].options.placement.even_perimeter == options.placement.even_perimeter);
-  // Automatic areas: last, a smaller share of them for the placement, not gated.
-  CHECK(automatic[2].change == "end_share");
-  CHECK(automatic[2].options.placement_end_share == options.end_share_retry);
-  CHECK(automatic[2].options.cast_rim);
-  CHECK_FALSE(automatic[2].gated);
-  for (const RetryStep& step : automatic) {
-    CHECK(step.options.end_share_retry == 0.0);
-    CHECK_NOTHROW(step.options.validate());
-  }
-  const auto given = retry_plan(options, true);
-  // With the landmark strips: the alternative, the rims left and both twists; then the first try
-  // and the same four with the landmark disks (StripOptions::disk_fallback).
-  REQUIRE(given.size() == 9);
-  CHECK(given[1].change == "rim_left");
-  CHECK(given[2].change == "corner_twist");
-  CHECK(given[2].options.placement.corner_twist_deg == 0.0);
-  CHECK(given[2].options.cast_rim);
-  CHECK(given[3].options.placement.corner_twist_deg == 67.5);
-  CHECK(given[3].options.placement.even_perimeter == options.placement.even_perimeter);
-  CHECK(given[4].change == "landmark_disks");
-  CHECK(given[4].options.placement.corner_twist_deg == options.placement.corner_twist_deg);
-  CHECK(given[5].change == "landmark_disks_alternative_placement");
-  CHECK(given[6].change == "landmark_disks_rim_left");
-  CHECK_FALSE(given[6].options.cast_rim);
-  CHECK(given[8].change == "landmark_disks_corner_twist");
-  CHECK(given[8].options.placement.corner_twist_deg == 67.5);
-  for (std::size_t i = 0; i < given.size(); ++i) CHECK(given[i].options.strip.join == (i < 4));
-  for (const RetryStep& step : given) {
-    CHECK_FALSE(step.options.retry_alternative);
-    CHECK(step.options.landmark_twists_deg.empty());
-    CHECK(step.options.placement_end_share == 1.0);  // landmark areas: no end_share step
-    CHECK_NOTHROW(step.options.validate());
-    // The alternative placements and the rims left are gated by the first try's folds, the
-    // twists are not; only the disks' first try starts a new sequence.
-    CHECK(step.gated == (step.change.find("alternative_placement") != std::string::npos ||
-                         step.change.find("rim_left") != std::string::npos));
-    CHECK(step.starts_sequence == (step.change == "landmark_disks"));
-  }
-  CHECK(automatic[0].gated);
-  CHECK(automatic[1].gated);
-  CHECK_FALSE(given[2].gated);
-  options.cast_rim = false;
-  CHECK(retry_plan(options, false).size() == 2);
-  options.retry_alternative = false;
-  CHECK(retry_plan(options, false).size() == 1);
-  options.end_share_retry = 0.0;
-  CHECK(retry_plan(options, false).empty());
-  CHECK(retry_plan(options, true).size() == 5);
-  options.strip.disk_fallback = false;
-  CHECK(retry_plan(options, true).size() == 2);
-  options.strip.disk_fallback = true;
-  options.strip.join = false;  // the disks from the start: nothing to fall back to
-  CHECK(retry_plan(options, true).size() == 2);
-
+TEST_CASE("the ranking of results", "[fibres][decompose]") {
   CheckReport pass, fail_one, fail_one_folded, fail_two;
   pass.pass = true;
   fail_one.failed = {"coverage"};
@@ -728,16 +675,11 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   CHECK_THROWS_WITH(share.validate(), Catch::Contains("placement_end_share"));
   share.placement_end_share = 1.5;
   CHECK_THROWS_WITH(share.validate(), Catch::Contains("placement_end_share"));
-  share.placement_end_share = 1.0;
-  share.end_share_retry = 1.0;
-  CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
   DecomposeOptions layers;
-  layers.even_layers_ratio = 0.5;
+  layers.tries.even_layers_ratio = 0.5;
   CHECK_THROWS_WITH(layers.validate(), Catch::Contains("even_layers_ratio"));
-  layers.even_layers_ratio = 0.0;
+  layers.tries.even_layers_ratio = 0.0;
   CHECK_NOTHROW(layers.validate());
-  share.end_share_retry = -0.5;
-  CHECK_THROWS_WITH(share.validate(), Catch::Contains("end_share_retry"));
   DecomposeOptions depth;
   depth.contact_depth_min = 0.5;  // deeper than contact_depth
   CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));

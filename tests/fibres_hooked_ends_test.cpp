@@ -23,7 +23,7 @@ TEST_CASE("a biceps's bent ends: the untangling with the surface ring free leave
   const std::string muscle = test::data_dir() + "/muscles/opendihu/biceps_full_streamline_tracer.stl";
   const PolygonSoup soup = read_polygon_soup(muscle);
   DecomposeOptions former;
-  former.retry_alternative = false;  // the first placement's untangling
+  former.tries.second_try = false;  // the first placement's untangling
   former.untangle.solver.keep_best = false;
   former.untangle.contact_rounds = 6;
   // The areas as their bands' vertices, whose gaps on this mesh shrink the cast end faces: the

@@ -1,8 +1,6 @@
 // The decomposition with landmark attachment areas (issue 6): the LHDL muscles with their
 // *.origin.xyz / *.insertion.xyz files. With landmark areas the placement's poles lie on the
-// muscle's side and the default corner twist can miss the coverage criterion; the decomposition
-// then retries other twists (DecomposeOptions::landmark_twists_deg) and keeps the best result.
-// The landmark rows are joined into strips first (DecomposeOptions::strip).
+// muscle's side; a coverage gap or folds call the second try (fibres/try_policy.h). The landmark rows are joined into strips first (DecomposeOptions::strip).
 // The full matrix (4 muscles x 5 templates) is measured by `fascicle bench decompose`
 // (docs/BENCHMARKS.md); this test runs the part of it that is cheap enough for CI on 2 cores,
 // with a floor that leaves room for one case.
@@ -45,7 +43,7 @@ LandmarkRun run_lhdl(const std::string& name, const std::string& mesh, springs::
 
 // A capsule along z (make_capsule lies along x; the cyclic permutation is a rotation), its
 // landmark areas at the two tips, and options with a check no decomposition can pass (coverage p95
-// at most 0.01 ideal spacings) on a small lattice: every retry then runs.
+// at most 0.01 ideal spacings) on a small lattice: the second try then runs.
 struct ImpossibleCapsule {
   TriangleMesh mesh;
   Landmarks landmarks;
@@ -68,80 +66,27 @@ ImpossibleCapsule impossible_capsule() {
 
 }  // namespace
 
-TEST_CASE("landmark twists: options are checked", "[fibres][decompose]") {
-  DecomposeOptions options;
-  REQUIRE_NOTHROW(options.validate());
-  options.landmark_twists_deg = {0.0, 200.0};
-  CHECK_THROWS_WITH(options.validate(), Catch::Contains("landmark_twists_deg"));
-  options.landmark_twists_deg.assign(17, 0.0);
-  CHECK_THROWS_WITH(options.validate(), Catch::Contains("landmark_twists_deg"));
-  options.landmark_twists_deg.clear();
-  CHECK_NOTHROW(options.validate());
-}
-
-TEST_CASE("landmark twists: the command line takes degrees or 'none', and refuses the rest", "[fibres][decompose]") {
-  test::TempDir dir;
-  const std::string fascicle = test::program();
-  const std::string out = dir.file("out.vtk");
-  // The options are checked before the input is read: a missing input is not reached.
-  const std::string start = fascicle + " decompose " + dir.file("missing.off") + " -o " + out;
-  CHECK(test::run_command(start + " --landmark-twists 0 200 2>/dev/null") == 18);
-  CHECK(test::run_command(start + " --landmark-twists 0 ten 2>/dev/null") == 18);
-  CHECK(test::run_command(start + " --landmark-twists none 10 2>/dev/null") == 18);
-  // Good values pass the option checks and fail on the missing file instead.
-  CHECK(test::run_command(start + " --landmark-twists 0 -30.5 2>/dev/null") != 18);
-  CHECK(test::run_command(start + " --landmark-twists none 2>/dev/null") != 18);
-}
-
-TEST_CASE("landmark twists: retried only with landmark areas, only while the check fails", "[fibres][decompose]") {
+TEST_CASE("landmark areas: at most two tries, both with the strips", "[fibres][decompose]") {
   ImpossibleCapsule capsule = impossible_capsule();
   const TriangleMesh& mesh = capsule.mesh;
   const Landmarks& landmarks = capsule.landmarks;
   DecomposeOptions& options = capsule.options;
-  options.landmark_twists_deg = {0.0, 30.0};
-  options.retry_alternative = false;      // only the twists here (the alternative: fibres_decompose_test)
-  options.landmark_narrow_retry = false;  // its own test below
-
-  const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
-  CHECK(automatic.report.status == "failed");
-  // Automatic areas: no twist; the end-share retry only (the alternative is off here).
-  REQUIRE(automatic.report.attempts.size() == 2);
-  CHECK(automatic.report.attempts[1]["change"] == "end_share");
-
   const Decomposition given = decompose_repaired(mesh, landmarks, options);
   const nlohmann::json& attempts = given.report.attempts;
   INFO(attempts.dump());
   CHECK(given.report.status == "failed");
-  // The default twist, then both retries, with the landmark strips; then the same three with the
-  // landmark disks (StripOptions::disk_fallback).
-  REQUIRE(attempts.size() == 6);
-  CHECK(attempts[0]["corner_twist_deg"].get<double>() == 45.0);
-  CHECK(attempts[1]["corner_twist_deg"].get<double>() == 0.0);
-  CHECK(attempts[2]["corner_twist_deg"].get<double>() == 30.0);
-  CHECK(attempts[3]["change"] == "landmark_disks");
-  CHECK(attempts[3]["corner_twist_deg"].get<double>() == 45.0);
-  CHECK(attempts[5]["corner_twist_deg"].get<double>() == 30.0);
-  for (std::size_t a = 0; a < attempts.size(); ++a) CHECK(attempts[a]["landmark_strip"].get<bool>() == (a < 3));
-  // The kept result is the best by better_result(): no attempt fails fewer criteria, and an
-  // earlier one failing as many has at least as many inverted cells.
+  // The coverage gap calls the second try with narrow edge cells; no twist, no disks.
+  REQUIRE(attempts.size() == 2);
+  CHECK(attempts[1]["change"] == "narrow_edge_cells");
+  for (const nlohmann::json& attempt : attempts) {
+    CHECK(attempt["landmark_strip"].get<bool>());
+    CHECK(attempt["corner_twist_deg"].get<double>() == 45.0);
+  }
   const auto kept = static_cast<std::size_t>(given.report.kept_attempt);
   REQUIRE(kept < attempts.size());
-  for (std::size_t a = 0; a < attempts.size(); ++a) {
-    CHECK(attempts[a]["failed"].size() >= attempts[kept]["failed"].size());
-    if (a < kept && attempts[a]["failed"].size() == attempts[kept]["failed"].size())
-      CHECK(attempts[a]["inverted_cells"].get<long>() >= attempts[kept]["inverted_cells"].get<long>());
-  }
+  CHECK(attempts[kept]["failed"].size() <= attempts[1 - kept]["failed"].size());
   CHECK(attempts[kept]["coverage_p95"].get<double>() == given.report.quality.coverage.p95);
-
-  // No twists to retry and no fallback: one attempt, the default twist's.
-  options.landmark_twists_deg.clear();
-  options.strip.disk_fallback = false;
-  const Decomposition single = decompose_repaired(mesh, landmarks, options);
-  CHECK(single.report.attempts.size() == 1);
-  CHECK(single.report.kept_attempt == 0);
-
-  // A check that passes: no retry even with landmarks.
-  options.landmark_twists_deg = {0.0, 30.0};
+  // A check that passes: one try.
   options.check = DecomposeOptions::default_check();
   const Decomposition passing = decompose_repaired(mesh, landmarks, options);
   INFO(passing.report.attempts.dump());
@@ -174,18 +119,16 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
     const CheckReport& q = run.result.report.quality;
     const nlohmann::json& attempts = run.report["attempts"];
     INFO(c.name << " " << springs::template_name(c.kind) << ": " << attempts.dump());
-    // Every attempt is listed, the first with the default twist; the kept one is the best.
+    // Every try is listed (at most two), the first with the default twist; the kept one is the best.
     REQUIRE(attempts.size() >= 1);
+    REQUIRE(attempts.size() <= 2);
     CHECK(attempts[0]["corner_twist_deg"].get<double>() == DecomposeOptions{}.placement.corner_twist_deg);
     const auto kept = static_cast<std::size_t>(run.report["kept_attempt"].get<int>());
     REQUIRE(kept < attempts.size());
     CHECK(attempts[kept]["coverage_p95"].get<double>() == q.coverage.p95);
     CHECK(attempts[kept]["inverted_cells"].get<long>() == q.inverted_cells);
-    // Retries stop at the first pass; every attempt before the kept one failed.
-    if (q.pass) CHECK(kept + 1 == attempts.size());
-    for (std::size_t a = 0; a < kept; ++a) CHECK(attempts[a]["status"] == "failed");
-    // Never worse than the default twist alone: a retry replaces it only by failing fewer
-    // criteria.
+    // Never worse than the first try alone: the second replaces it only by failing fewer
+    // criteria, or by evener layers where both pass.
     if (attempts[0]["status"] == "ok") CHECK(q.pass);
     CHECK(q.failed.size() <= attempts[0]["failed"].size());
     CHECK(q.inside_fraction == 1.0);
@@ -197,8 +140,8 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
     CHECK(run.report["attachments"]["strip"]["origin"]["joins"].get<int>() > 0);
     for (const auto& cast : run.report["settle"]["cast_faces"].back())
       if (cast["cast"].get<bool>()) CHECK(cast["strip_factors"].size() == 2);
-    // The pass comes from a try with the strips (the disks' tries are only the fallback).
-    if (q.pass) CHECK(attempts[kept]["landmark_strip"].get<bool>());
+    // Both tries keep the strips.
+    CHECK(attempts[kept]["landmark_strip"].get<bool>());
     passed += q.pass ? 1 : 0;
     if (c.must_pass) {
       CHECK(q.pass);
@@ -231,42 +174,10 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
   CHECK(passed >= 4);  // all 5 are expected to pass; room for one swung by round-off
 }
 
-TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on the narrow meridian stage",
-          "[fibres][decompose][corpus][slow]") {
-  // With the untangling's depths over all springs (across_spacing false) and 6 containment
-  // rounds, every try of the plan fails on this muscle (its origin strip runs down the side, its
-  // tendon hooks), so the plan run again with meridian rings and edge cells of 0.5
-  // (DecomposeOptions::landmark_narrow_retry) is exercised and must pass. With the defaults a try
-  // before the stage passes (the tests below). About 6 minutes on 2 cores.
-  FASCICLE_REQUIRE_DATA();
-  DecomposeOptions over_all_springs;
-  over_all_springs.untangle.across_spacing = false;
-  over_all_springs.untangle.contact_rounds = 6;
-  const LandmarkRun run = run_lhdl("LHDL_R_M090_Psoas", "LHDL_R_M090_Psoas_smooth.415.vtk",
-                                   springs::TemplateKind::parallel, over_all_springs);
-  const CheckReport& q = run.result.report.quality;
-  const nlohmann::json& attempts = run.report["attempts"];
-  INFO(attempts.dump());
-  const auto kept = static_cast<std::size_t>(run.report["kept_attempt"].get<int>());
-  REQUIRE(kept < attempts.size());
-  CHECK(q.pass);
-  CHECK(q.inverted_cells == 0);
-  CHECK(q.coverage.p95 <= 2.0);
-  // The kept result is the stage's; every try before the stage failed.
-  CHECK(attempts[kept]["meridian_rings"].get<bool>());
-  CHECK(attempts[kept]["edge_cell"].get<double>() == 0.5);
-  std::size_t stage = attempts.size();
-  for (std::size_t a = 0; a < attempts.size(); ++a)
-    if (attempts[a]["change"] == "landmark_narrow") stage = std::min(stage, a);
-  REQUIRE(stage < attempts.size());
-  CHECK(kept >= stage);
-  for (std::size_t a = 0; a < stage; ++a) CHECK(attempts[a]["status"] != "ok");
-}
-
 TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on its first try",
           "[fibres][decompose][corpus][slow]") {
   // With the untangling's depths measured across the fibres (the default across_spacing) the
-  // first try passes and the narrow stage never runs. About 20 s on 2 cores.
+  // first try passes. About 40 s on 2 cores (a second try evens its layers).
   FASCICLE_REQUIRE_DATA();
   const LandmarkRun run =
       run_lhdl("LHDL_R_M090_Psoas", "LHDL_R_M090_Psoas_smooth.415.vtk", springs::TemplateKind::parallel);
@@ -280,7 +191,7 @@ TEST_CASE("landmark matrix: the LHDL psoas with the parallel template passes on 
   CHECK(q.inverted_cells == 0);
   CHECK(q.inside_fraction == 1.0);
   CHECK(q.coverage.p95 <= 2.0);
-  for (const nlohmann::json& a : attempts) CHECK(a["change"] != "landmark_narrow");
+  CHECK(attempts.size() <= 2);
 }
 
 TEST_CASE(
@@ -305,14 +216,9 @@ TEST_CASE(
     DecomposeOptions options;
     options.placement.meridian_rings = true;
     options.edge_cell = 0.5;
-    options.edge_cell_fallback = false;
-    options.even_layers_ratio = 0.0;
+    options.tries.second_try = false;
     options.strip.join = pair.strip;
-    options.strip.disk_fallback = false;
     options.placement.corner_twist_deg = pair.twist;
-    options.retry_alternative = false;
-    options.landmark_twists_deg.clear();
-    options.landmark_narrow_retry = false;
     REQUIRE(options.untangle.contact_rounds == 16);  // the defaults
     REQUIRE(options.untangle.fold_stall_needs_outside_stall);
     const auto run = [&](const DecomposeOptions& o) {
@@ -337,52 +243,4 @@ TEST_CASE(
       CHECK(run(rule).result.report.quality.inverted_cells > 0);
     }
   }
-}
-
-TEST_CASE(
-    "landmark narrow stage: the whole plan again with meridian rings and narrow edge cells only after every try failed",
-    "[fibres][decompose]") {
-  // The capsule and the check no decomposition can pass of the twists' test above.
-  ImpossibleCapsule capsule = impossible_capsule();
-  const TriangleMesh& mesh = capsule.mesh;
-  const Landmarks& landmarks = capsule.landmarks;
-  DecomposeOptions& options = capsule.options;
-  options.landmark_twists_deg = {30.0};
-  options.retry_alternative = false;
-  options.strip.disk_fallback = false;
-  REQUIRE(options.landmark_narrow_retry);  // the default
-
-  const Decomposition given = decompose_repaired(mesh, landmarks, options);
-  const nlohmann::json& attempts = given.report.attempts;
-  INFO(attempts.dump());
-  CHECK(given.report.status == "failed");
-  // The plan (the default twist, then 30 degrees), then the same plan from "landmark_narrow"
-  // with meridian rings and edge cells of 0.5.
-  REQUIRE(attempts.size() == 4);
-  CHECK(attempts[0]["change"] == "none");
-  CHECK(attempts[2]["change"] == "landmark_narrow");
-  CHECK(attempts[3]["corner_twist_deg"].get<double>() == 30.0);
-  for (std::size_t a = 0; a < attempts.size(); ++a) {
-    CHECK(attempts[a]["meridian_rings"].get<bool>() == (a >= 2));
-    CHECK(attempts[a]["edge_cell"].get<double>() == (a >= 2 ? 0.5 : 1.0));
-  }
-  const auto kept = static_cast<std::size_t>(given.report.kept_attempt);
-  REQUIRE(kept < attempts.size());
-  for (std::size_t a = 0; a < attempts.size(); ++a)
-    CHECK(attempts[a]["failed"].size() >= attempts[kept]["failed"].size());
-  CHECK(attempts[kept]["coverage_p95"].get<double>() == given.report.quality.coverage.p95);
-
-  // Off, or automatic areas, or meridian rings already asked for: no stage.
-  DecomposeOptions off = options;
-  off.landmark_narrow_retry = false;
-  CHECK(decompose_repaired(mesh, landmarks, off).report.attempts.size() == 2);
-  const Decomposition automatic = decompose_repaired(mesh, Landmarks{}, options);
-  for (const auto& attempt : automatic.report.attempts) CHECK(attempt["change"] != "landmark_narrow");
-  DecomposeOptions meridian = options;
-  meridian.placement.meridian_rings = true;
-  CHECK(decompose_repaired(mesh, landmarks, meridian).report.attempts.size() == 2);
-
-  // A check that passes: the plan stops at its first try.
-  options.check = DecomposeOptions::default_check();
-  CHECK(decompose_repaired(mesh, landmarks, options).report.attempts.size() == 1);
 }

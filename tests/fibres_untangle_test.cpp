@@ -564,8 +564,7 @@ TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells
   const PolygonSoup soup =
       read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_RectusFemoris_smooth.stl");
   DecomposeOptions options;
-  options.retry_alternative = false;  // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;      // (nor the end-share retry)
+  options.tries.second_try = false;  // this case is about the untangling of one placement
   options.untangle_cells = false;
   const Decomposition folded = decompose(soup, {}, options);
   REQUIRE(folded.report.quality.inverted_cells > 0);
@@ -675,8 +674,7 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
   DecomposeOptions options;
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
                                              // default twist of 45 degrees needs no pins here)
-  options.retry_alternative = false;         // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;             // (nor the end-share retry)
+  options.tries.second_try = false;          // this case is about the untangling of one placement
   options.cast_rim = false;                  // the face rims as when the case was found (cast, they
                                              // leave nothing outside to pin here)
   options.untangle.sliding_contact = false;  // the containment pins as when the case was found
@@ -703,8 +701,7 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
   const PolygonSoup soup =
       read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   DecomposeOptions options;
-  options.retry_alternative = false;                    // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;                        // (nor the end-share retry)
+  options.tries.second_try = false;                     // this case is about the untangling of one placement
   options.contact_segments = false;                     // (nor the segment attempt: points outside only)
   REQUIRE(options.untangle.contact_stall_rounds == 0);  // the default: every containment round
   const Decomposition all_rounds = decompose(soup, {}, options);
@@ -788,9 +785,7 @@ TEST_CASE(
   // Without the retry (containment_retry false) the contained attempts never run.
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
-  options.retry_alternative = false;  // this case is about the untangling of one placement
-  options.end_share_retry = 0.0;      // (nor the end-share retry,
-  options.even_layers_ratio = 0.0;    // nor the meridian try)
+  options.tries.second_try = false;  // this case is about the untangling of one placement
   // The areas as their bands' vertices (no points across the triangles), whose gaps shrink the
   // cast end faces: the case whose free-ring attempt leaves folds.
   options.attachments.max_point_spacing = 1.0;

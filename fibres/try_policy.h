@@ -1,0 +1,36 @@
+#pragma once
+/// \file try_policy.h
+/// At most two whole decompositions of a muscle: the first with the options as given, and a
+/// second only where the first's check shows a failure mode whose cause the second changes:
+///   folds          cells still inverted after the untangling: the rings, placed along levels of
+///                  the sphere map, crowd where the muscle bends   -> rings placed by meridian
+///   uneven_layers  a layer of fibre segments over even_layers_ratio times the median (the rings
+///                  skipped a stretch of muscle)                    -> rings placed by meridian
+///   coverage       coverage p95 over the check's limit: the outermost fibres lie a whole spacing
+///                  in from the surface                            -> edge cells of 0.5
+/// decompose_repaired() (fibres/decompose.h) keeps the better of the two (better_result(), or
+/// with uneven layers the evener of two that pass) and names the failure modes in its report.
+#include "fibres/fibre_check.h"
+
+#include <string>
+#include <vector>
+
+namespace fascicle {
+
+/// When a decomposition is tried a second time.
+struct TryPolicy {
+  /// One second try where the first shows a failure mode above (default true; false: one try).
+  bool second_try = true;
+  /// A longest layer of fibre segments over this many times the median one is the failure mode
+  /// "uneven_layers", >= 1 (default 2.5; 0: not a failure mode).
+  double even_layers_ratio = 2.5;
+  /// Throws OptionError naming the first bad field.
+  void validate() const;
+};
+
+/// The failure modes of a try's check, in the order above ("folds", "uneven_layers",
+/// "coverage"); empty when it shows none (which can be a failed check: the other criteria have
+/// no second try).
+std::vector<std::string> failure_modes(const CheckReport& result, const TryPolicy& policy);
+
+}  // namespace fascicle
