@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <map>
 #include <numeric>
 #include <random>
@@ -268,6 +269,31 @@ double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samp
   return std::max(one_sided_distance(a, b, samples, seed), one_sided_distance(b, a, samples, seed));
 }
 
+std::string face_key(std::array<Vec3, 3> c) {
+  std::sort(c.begin(), c.end(), [](const Vec3& a, const Vec3& b) {
+    return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+  });
+  std::string k(sizeof(double) * 9, '\0');
+  for (int i = 0; i < 3; ++i) std::memcpy(&k[sizeof(double) * 3 * i], c[i].data(), sizeof(double) * 3);
+  return k;
+}
+
+bool same_faces(const TriangleMesh& a, const TriangleMesh& b) {
+  if (a.triangles.size() != b.triangles.size()) return false;
+  auto corners = [](const TriangleMesh& m, const Triangle& t) {
+    return std::array<Vec3, 3>{m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]};
+  };
+  std::unordered_map<std::string, long> count;
+  count.reserve(a.triangles.size());
+  for (const Triangle& t : a.triangles) ++count[face_key(corners(a, t))];
+  for (const Triangle& t : b.triangles) {
+    auto it = count.find(face_key(corners(b, t)));
+    if (it == count.end() || it->second == 0) return false;
+    --it->second;
+  }
+  return true;
+}
+
 }  // namespace detail
 
 MeshCensus census_of(const PolygonSoup& soup) {
@@ -291,7 +317,9 @@ MeshCensus census_of(const PolygonSoup& soup) {
   return c;
 }
 
-std::string verify_genus0(const TriangleMesh& mesh) {
+std::string verify_genus0(const TriangleMesh& mesh) { return detail::verify_genus0(mesh, true); }
+
+std::string detail::verify_genus0(const TriangleMesh& mesh, bool test_intersections) {
   if (mesh.triangles.empty()) return "the mesh has no faces";
   for (const Vec3& p : mesh.positions)
     if (!p.allFinite()) return "a vertex has a non-finite coordinate";
@@ -307,7 +335,7 @@ std::string verify_genus0(const TriangleMesh& mesh) {
   for (const Triangle& t : mesh.triangles)
     if (CGAL::collinear(to_point(mesh.positions[t[0]]), to_point(mesh.positions[t[1]]), to_point(mesh.positions[t[2]])))
       return "a face is degenerate (zero area)";
-  if (count_self_intersections(mesh, true) > 0) return "the surface intersects itself";
+  if (test_intersections && count_self_intersections(mesh, true) > 0) return "the surface intersects itself";
   if (!(signed_volume(mesh) > 0.0)) return "the enclosed volume is not positive (inward orientation or flat)";
   return {};
 }

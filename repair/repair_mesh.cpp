@@ -325,9 +325,10 @@ class RepairPipeline {
   }
 
   void remove_self_intersections(Mesh& mesh) {
-    bool intersecting = PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh);
+    const auto t0 = Clock::now();
+    const bool intersecting = PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh);
     if (!intersecting) {
-      report_.steps.push_back({"remove_self_intersections", 0, 0.0, "none found"});
+      report_.steps.push_back({"remove_self_intersections", 0, seconds_since(t0), "none found"});
       return;
     }
     // CT folds are mostly crumpled surface: first untangle them by smoothing the vertices of the
@@ -462,20 +463,12 @@ class RepairPipeline {
 // components (matched by their corners' coordinates, which the pipeline never moves).
 TriangleMesh kept_part(const TriangleMesh& cleaned, const std::vector<std::array<Vec3, 3>>& dropped) {
   if (dropped.empty()) return cleaned;
-  auto key = [](std::array<Vec3, 3> c) {
-    std::sort(c.begin(), c.end(), [](const Vec3& a, const Vec3& b) {
-      return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
-    });
-    std::string k(sizeof(double) * 9, '\0');
-    for (int i = 0; i < 3; ++i) std::memcpy(&k[sizeof(double) * 3 * i], c[i].data(), sizeof(double) * 3);
-    return k;
-  };
   std::unordered_set<std::string> gone;
-  for (const auto& c : dropped) gone.insert(key(c));
+  for (const auto& c : dropped) gone.insert(detail::face_key(c));
   TriangleMesh kept;
   kept.positions = cleaned.positions;
   for (const Triangle& t : cleaned.triangles)
-    if (!gone.count(key({cleaned.positions[t[0]], cleaned.positions[t[1]], cleaned.positions[t[2]]})))
+    if (!gone.count(detail::face_key({cleaned.positions[t[0]], cleaned.positions[t[1]], cleaned.positions[t[2]]})))
       kept.triangles.push_back(t);
   return kept;
 }
@@ -521,7 +514,9 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
 
   try {
     result.mesh = pipeline.local_repair(cleaned);
-    const std::string failure = verify_genus0(result.mesh);
+    // remove_self_intersections() left no intersecting pair, and what follows it only drops
+    // whole components and flips faces: the test need not run again.
+    const std::string failure = detail::verify_genus0(result.mesh, false);
     if (!failure.empty()) throw NeedsWrap{"local repair result: " + failure};
   } catch (const NeedsWrap& need) {
     report.fallback_reason = need.reason;
@@ -537,11 +532,15 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
   // The output passed verify_genus0 (no self-intersection), so the census need not count again.
   report.output = detail::census_of_triangles(result.mesh, false);
   const TriangleMesh kept = report.fallback_used ? cleaned : kept_part(cleaned, pipeline.dropped_);
-  report.hausdorff = detail::hausdorff_distance(kept, result.mesh, options.hausdorff_samples) / diagonal;
+  // A result made of the kept input's own faces (welded, reoriented) lies at distance 0 exactly.
+  auto distance_to = [&](const TriangleMesh& input) {
+    return detail::same_faces(input, result.mesh)
+               ? 0.0
+               : detail::hausdorff_distance(input, result.mesh, options.hausdorff_samples) / diagonal;
+  };
+  report.hausdorff = distance_to(kept);
   report.hausdorff_whole_input =
-      pipeline.dropped_.empty() || report.fallback_used
-          ? report.hausdorff
-          : detail::hausdorff_distance(cleaned, result.mesh, options.hausdorff_samples) / diagonal;
+      pipeline.dropped_.empty() || report.fallback_used ? report.hausdorff : distance_to(cleaned);
   report.input = input_census.get();
   report.kept_area_share = report.input.area > 0.0 ? report.output.area / report.input.area : 0.0;
   report.steps.push_back({"verify", 0, seconds_since(tv), "census of the output and Hausdorff distance"});

@@ -14,6 +14,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace fascicle;
@@ -139,8 +140,25 @@ TEST_CASE("a clean mesh passes through unchanged", "[repair]") {
   require_valid(r);
   CHECK(r.report.status == "unchanged");
   CHECK(r.mesh.triangles.size() == sphere.triangles.size());
-  CHECK(r.report.hausdorff < 1e-12);
+  CHECK(r.report.hausdorff == 0.0);  // its own faces: exactly 0, not sampled
   CHECK_FALSE(r.report.fallback_used);
+}
+
+TEST_CASE("same_faces compares corner coordinates in any order and orientation", "[repair]") {
+  const TriangleMesh sphere = make_icosphere(2);
+  TriangleMesh flipped = sphere;
+  for (auto& t : flipped.triangles) std::swap(t[1], t[2]);
+  std::reverse(flipped.triangles.begin(), flipped.triangles.end());
+  CHECK(detail::same_faces(sphere, flipped));
+  TriangleMesh moved = sphere;
+  moved.positions[5].x() += 1e-9;
+  CHECK_FALSE(detail::same_faces(sphere, moved));
+  TriangleMesh fewer = sphere;
+  fewer.triangles.pop_back();
+  CHECK_FALSE(detail::same_faces(sphere, fewer));
+  TriangleMesh doubled = fewer;  // the same count with one face repeated is not the same
+  doubled.triangles.push_back(doubled.triangles.front());
+  CHECK_FALSE(detail::same_faces(sphere, doubled));
 }
 
 TEST_CASE("an inward-oriented mesh is turned outward", "[repair]") {

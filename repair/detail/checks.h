@@ -5,7 +5,9 @@
 #include "geometry/mesh.h"
 #include "repair/repair.h"
 
+#include <array>
 #include <cstdint>
+#include <string>
 
 namespace fascicle::detail {
 
@@ -18,6 +20,17 @@ MeshCensus census_of_triangles(const TriangleMesh& mesh, bool count_intersection
 /// distances, each the maximum over all vertices and `samples` area-weighted random points of
 /// one mesh of the distance to the other (CGAL AABB tree). Seeded, so reproducible.
 double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samples, std::uint64_t seed = 1);
+
+/// verify_genus0() with the self-intersection test left out when `test_intersections` is false:
+/// for a mesh whose faces were already tested by the caller and not moved since.
+std::string verify_genus0(const TriangleMesh& mesh, bool test_intersections);
+
+/// A face's key: its three corner coordinates, sorted, as bytes (the same for either orientation).
+std::string face_key(std::array<Vec3, 3> corners);
+
+/// Whether `a` and `b` hold the same faces (each face's three corner coordinates, in any order
+/// and orientation): then their Hausdorff distance is exactly 0 and need not be sampled.
+bool same_faces(const TriangleMesh& a, const TriangleMesh& b);
 
 /// One-sided version: the largest distance from a sample point of `from` (vertices and
 /// `samples` area-weighted points) to the surface `to`, absolute units.
