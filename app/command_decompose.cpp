@@ -317,9 +317,6 @@ void add_decompose_command(CLI::App& app) {
                   "Width of the lattice cells between the surface ring and the outermost fibres, in fibre spacings "
                   "(0.5: the outermost fibres half a spacing from the surface; 1: the ring spaced like the fibres)")
       ->capture_default_str();
-  cmd->add_option("--contact-depth-min", o.contact_depth_min,
-                  "Depth (local spacings) of the containment target of a point only just outside the muscle")
-      ->capture_default_str();
   cmd->add_option("--contact-rounds", o.contact_rounds,
                   "Containment rounds: points the settle leaves outside are fixed just inside and the settle rerun")
       ->capture_default_str();

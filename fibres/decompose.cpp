@@ -266,25 +266,20 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
         }
       }
     }
+    // Every end cast from the layer scaled by factor about c1 along axis, or false when one
+    // misses the surface or lands off the area.
+    const auto cast_all = [&](double factor, const Vec3& axis, std::vector<Vec3>& hits) {
+      hits.clear();
+      for (const Vec3& offset : offsets) {
+        Vec3 hit;
+        if (!query.first_hit(c1 + factor * offset, axis, reach, hit) || !area->near(hit, radius)) return false;
+        hits.push_back(hit);
+      }
+      return true;
+    };
     for (std::size_t a = 0; a < axes.size() && !placed && !strip; ++a) {
       lambda = 1.0;
-      for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) {
-        ends.clear();
-        placed = true;
-        for (const Vec3& offset : offsets) {
-          const Vec3 start = c1 + lambda * offset;
-          Vec3 hit;
-          if (!query.first_hit(start, axes[a], reach, hit)) {
-            placed = false;
-            break;
-          }
-          if (!area->near(hit, radius)) {
-            placed = false;
-            break;
-          }
-          ends.push_back(hit);
-        }
-      }
+      for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) placed = cast_all(lambda, axes[a], ends);
       used_axis = a;
     }
     bool rim_cast = false;
@@ -437,8 +432,6 @@ void DecomposeOptions::validate() const {
     throw OptionError("contact_rounds: must be in 0..100, got " + std::to_string(contact_rounds));
   if (!(contact_depth > 0.0 && contact_depth < 1.0))
     throw OptionError("contact_depth: must be in (0, 1), got " + std::to_string(contact_depth));
-  if (!(contact_depth_min > 0.0 && contact_depth_min <= contact_depth))
-    throw OptionError("contact_depth_min: must be in (0, contact_depth], got " + std::to_string(contact_depth_min));
   if (!(placement_end_share > 0.0 && placement_end_share <= 1.0))
     throw OptionError("placement_end_share: must be in (0, 1], got " + std::to_string(placement_end_share));
   tries.validate();
@@ -667,13 +660,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // A point just inside the surface for the outside point q: the closest surface point moved
   // `contact_depth` local spacings inwards (halved until it is inside).
   auto contact_target = [&](int q, const std::vector<double>& spacing) -> Vec3 {
-    double depth = options.contact_depth;
-    if (options.contact_depth_min < options.contact_depth && spacing[static_cast<std::size_t>(q)] > 0.0) {
-      const Vec3& p = system.positions[static_cast<std::size_t>(q)];
-      const double outside_by = (query.closest_point(p).position - p).norm() / spacing[static_cast<std::size_t>(q)];
-      depth = std::clamp(3.0 * outside_by, options.contact_depth_min, options.contact_depth);
-    }
-    return lattice_contact_point(system, lattice.point_count(), query, q, depth, spacing);
+    return lattice_contact_point(system, lattice.point_count(), query, q, options.contact_depth, spacing);
   };
   auto settle_with_contact = [&](const springs::SettleOptions& settle_options) {
     int soft = 0, local_rounds = 0;
@@ -867,7 +854,9 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     // The segment moves (step 9) and the untangling's segment attempt guard the points, the
     // segments and the cells, not the coverage (a global figure): when the result fails, the
     // fibres before the moves, then those finished from the lattice before the segment attempt
-    // (with and without its moves) are checked in turn, and the first that passes is kept.
+    // (with and without its moves) are checked in turn, and the first that passes is kept (an
+    // earlier one keeps more of the finishing steps). The report lists those checked and what
+    // each failed, of decompose's check and of the whole check.
     if (!report.quality.pass) {
       if (has_unheld) {
         fallbacks.push_back({unheld.positions, false, false, true});
@@ -876,12 +865,32 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
           fallbacks.push_back(std::move(f));
         }
       }
+      const Fallback* best = nullptr;
+      Polylines best_fibres;
+      CheckReport best_quality;
+      nlohmann::json tried = nlohmann::json::array();
       for (const Fallback& fallback : fallbacks) {
         Polylines fibres = fibres_of(fallback.positions);
         CheckReport quality = check_fibres(fibres, muscle, query, checked_against, options.check);
+        tried.push_back({{"unmoved", fallback.unmoved},
+                         {"unsmoothed", fallback.unsmoothed},
+                         {"unheld", fallback.unheld},
+                         {"failed", quality.failed},
+                         {"coverage_p95", quality.coverage.p95},
+                         {"whole_check_failed", failed_criteria(quality, CheckOptions{})}});
         if (!quality.pass) continue;
-        out.fibres = std::move(fibres);
-        report.quality = std::move(quality);
+        best = &fallback;
+        best_fibres = std::move(fibres);
+        best_quality = std::move(quality);
+        break;
+      }
+      report.containment["fallbacks"] = {{"failed", report.quality.failed},
+                                         {"coverage_p95", report.quality.coverage.p95},
+                                         {"tried", std::move(tried)}};
+      if (best) {
+        const Fallback& fallback = *best;
+        out.fibres = std::move(best_fibres);
+        report.quality = std::move(best_quality);
         if (fallback.unheld) {
           swap_finish_reports();
           report.untangle["segments_kept"] = !report.untangle["segments_kept"].get<bool>();
@@ -896,7 +905,6 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
           report.containment["segments"]["reverted"] = true;
           report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
         }
-        break;
       }
     }
   }

@@ -116,9 +116,6 @@ struct DecomposeOptions {
                                 ///< (4x stiffer each round) instead of fixing them, >= 0 (default 3)
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)
   double contact_depth = 0.3;   ///< contact target depth, in local spacings, (0, 1) (default 0.3)
-  /// Least contact depth: a point just outside goes 3x its distance out, clamped to [this, contact_depth],
-  /// (0, contact_depth] (default 0.3: a deep target can push a point past its neighbours).
-  double contact_depth_min = 0.3;
   bool untangle_cells = true;  ///< unfold the cells the settle leaves inverted (step 7) (default true)
   /// The untangling: solver, iteration budget, fibre-end pins, containment (defaults:
   /// fibres/untangle_lattice.h).

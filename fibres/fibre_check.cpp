@@ -628,16 +628,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
   }
 
   // ---- verdict ----
-  if (report.inside_fraction < options.min_inside_fraction) report.failed.push_back("inside");
-  if (report.inverted_cells > options.max_inverted_cells) report.failed.push_back("inverted_cells");
-  if (!(report.coverage.p95 <= options.max_coverage_p95)) report.failed.push_back("coverage");
-  if (!(std::max(report.attachment.origin_max, report.attachment.insertion_max) <= options.max_attachment))
-    report.failed.push_back("attachment");
-  if (options.max_crossing_segments >= 0 && report.crossing_segments > options.max_crossing_segments)
-    report.failed.push_back("segments");
-  if (!(report.turning.max_deg <= options.max_turning_angle_deg)) report.failed.push_back("smooth");
-  if (!(std::min(report.origin_ends.share, report.insertion_ends.share) >= options.min_end_coverage))
-    report.failed.push_back("ends");
+  report.failed = failed_criteria(report, options);
   report.pass = report.failed.empty();
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
@@ -868,6 +859,21 @@ std::string CheckReport::summary() const {
   out += ", ends " + fmt_double(origin_ends.share) + " / " + fmt_double(insertion_ends.share) +
          " (>= " + fmt_double(thresholds.min_end_coverage) + ")" + verdict("ends");
   return out;
+}
+
+std::vector<std::string> failed_criteria(const CheckReport& report, const CheckOptions& options) {
+  std::vector<std::string> failed;
+  if (report.inside_fraction < options.min_inside_fraction) failed.push_back("inside");
+  if (report.inverted_cells > options.max_inverted_cells) failed.push_back("inverted_cells");
+  if (!(report.coverage.p95 <= options.max_coverage_p95)) failed.push_back("coverage");
+  if (!(std::max(report.attachment.origin_max, report.attachment.insertion_max) <= options.max_attachment))
+    failed.push_back("attachment");
+  if (options.max_crossing_segments >= 0 && report.crossing_segments > options.max_crossing_segments)
+    failed.push_back("segments");
+  if (!(report.turning.max_deg <= options.max_turning_angle_deg)) failed.push_back("smooth");
+  if (!(std::min(report.origin_ends.share, report.insertion_ends.share) >= options.min_end_coverage))
+    failed.push_back("ends");
+  return failed;
 }
 
 }  // namespace fascicle

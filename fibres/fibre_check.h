@@ -302,4 +302,9 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
 CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, const SurfaceQuery& query,
                          const Attachments& areas, const CheckOptions& options = {});
 
+/// The criteria a report's figures fail under the thresholds of `options`, in the order of
+/// CheckReport::failed (the check's own verdict): a report measured once judged again, as the
+/// decomposition judges its candidates against the whole check's defaults.
+std::vector<std::string> failed_criteria(const CheckReport& report, const CheckOptions& options);
+
 }  // namespace fascicle

@@ -681,10 +681,10 @@ TEST_CASE("decompose refuses bad options and coinciding areas", "[fibres][decomp
   layers.tries.even_layers_ratio = 0.0;
   CHECK_NOTHROW(layers.validate());
   DecomposeOptions depth;
-  depth.contact_depth_min = 0.5;  // deeper than contact_depth
-  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));
-  depth.contact_depth_min = 0.0;
-  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth_min"));
+  depth.contact_depth = 1.0;  // a target on the next layer
+  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth"));
+  depth.contact_depth = 0.0;
+  CHECK_THROWS_WITH(depth.validate(), Catch::Contains("contact_depth"));
   Landmarks same;
   same.origin = same.insertion = {Vec3(0, 0, 5.0), Vec3(0.1, 0, 5.0)};
   same.origin_source = same.insertion_source = "same.xyz";
@@ -705,9 +705,6 @@ TEST_CASE("fascicle decompose: one-line errors with their codes and no output", 
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --resolution 1 2>/dev/null") == 18);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --corner-twist 200 2>/dev/null") == 18);
-  CHECK_FALSE(std::filesystem::exists(out));
-  CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + " --contact-depth-min 0.5 2>/dev/null") ==
-        18);
   CHECK_FALSE(std::filesystem::exists(out));
   for (const char* bad : {" --connect-margin -0.1", " --max-end-fraction 0.6", " --max-end-fraction 0.05"}) {
     CHECK(test::run_command(fascicle + " decompose " + muscle + " -o " + out + bad + " 2>/dev/null") == 18);
