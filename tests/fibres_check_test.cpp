@@ -109,6 +109,12 @@ TEST_CASE("straight lattice fibres in a box pass with the figures geometry predi
     CHECK(report.max_segment_excursion == 0.0);
     CHECK(report.pass);
     CHECK(report.failed.empty());
+    CHECK(failed_criteria(report, report.thresholds) == report.failed);
+    // The same figures judged again under stricter thresholds fail those criteria, in order.
+    CheckOptions strict = report.thresholds;
+    strict.max_coverage_p95 = 0.5 * report.coverage.p95;
+    strict.min_end_coverage = 1.01;
+    CHECK(failed_criteria(report, strict) == std::vector<std::string>{"coverage", "ends"});
   }
 }
 
