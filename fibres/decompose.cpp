@@ -865,32 +865,21 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
           fallbacks.push_back(std::move(f));
         }
       }
-      const Fallback* best = nullptr;
-      Polylines best_fibres;
-      CheckReport best_quality;
-      nlohmann::json tried = nlohmann::json::array();
+      nlohmann::json fallbacks_report = {{"failed", report.quality.failed},
+                                         {"coverage_p95", report.quality.coverage.p95},
+                                         {"tried", nlohmann::json::array()}};
       for (const Fallback& fallback : fallbacks) {
         Polylines fibres = fibres_of(fallback.positions);
         CheckReport quality = check_fibres(fibres, muscle, query, checked_against, options.check);
-        tried.push_back({{"unmoved", fallback.unmoved},
-                         {"unsmoothed", fallback.unsmoothed},
-                         {"unheld", fallback.unheld},
-                         {"failed", quality.failed},
-                         {"coverage_p95", quality.coverage.p95},
-                         {"whole_check_failed", failed_criteria(quality, CheckOptions{})}});
+        fallbacks_report["tried"].push_back({{"unmoved", fallback.unmoved},
+                                             {"unsmoothed", fallback.unsmoothed},
+                                             {"unheld", fallback.unheld},
+                                             {"failed", quality.failed},
+                                             {"coverage_p95", quality.coverage.p95},
+                                             {"whole_check_failed", failed_criteria(quality, CheckOptions{})}});
         if (!quality.pass) continue;
-        best = &fallback;
-        best_fibres = std::move(fibres);
-        best_quality = std::move(quality);
-        break;
-      }
-      report.containment["fallbacks"] = {{"failed", report.quality.failed},
-                                         {"coverage_p95", report.quality.coverage.p95},
-                                         {"tried", std::move(tried)}};
-      if (best) {
-        const Fallback& fallback = *best;
-        out.fibres = std::move(best_fibres);
-        report.quality = std::move(best_quality);
+        out.fibres = std::move(fibres);
+        report.quality = std::move(quality);
         if (fallback.unheld) {
           swap_finish_reports();
           report.untangle["segments_kept"] = !report.untangle["segments_kept"].get<bool>();
@@ -905,7 +894,9 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
           report.containment["segments"]["reverted"] = true;
           report.containment["segments"]["crossing_after"] = report.quality.touching_segments;
         }
+        break;
       }
+      report.containment["fallbacks"] = std::move(fallbacks_report);
     }
   }
   report.architecture = measure_architecture(out.fibres, muscle, checked_against, options.architecture);

@@ -529,7 +529,8 @@ RepairResult repair_mesh(const PolygonSoup& soup, const RepairOptions& options) 
   }
 
   const auto tv = Clock::now();
-  // The output passed verify_genus0 (no self-intersection), so the census need not count again.
+  // The output has no self-intersection (remove_self_intersections() or the wrap's own check saw
+  // to it), so the census need not count again.
   report.output = detail::census_of_triangles(result.mesh, false);
   const TriangleMesh kept = report.fallback_used ? cleaned : kept_part(cleaned, pipeline.dropped_);
   // A result made of the kept input's own faces (welded, reoriented) lies at distance 0 exactly.
