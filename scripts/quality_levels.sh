@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The --quality levels measured on a folder of muscles: for each level, `fascicle batch` with
 # default options and that level (timed), then `fascicle check` (every criterion, default
-# thresholds) on each muscle's fibres; prints one Markdown table row per level.
+# thresholds) on each muscle's fibres; prints one Markdown table row per level, with each muscle's own
+# decompose time (median and largest of its report's seconds.total) beside the batch's.
 # Usage: [BATCH_ARGS="--option value ..."] scripts/quality_levels.sh [FASCICLE [MUSCLES [OUT [LEVELS...]]]]
 #   defaults: build/fascicle, ../shared/data/muscles, /tmp/fascicle-quality, draft standard fine
 # Two runs (say with and without an option in BATCH_ARGS) are compared muscle by muscle by
@@ -14,8 +15,8 @@ shift $(( $# < 3 ? $# : 3 ))
 levels=("$@")
 [ ${#levels[@]} -eq 0 ] && levels=(draft standard fine)
 mkdir -p "$out"
-echo "| level | fibres x points | batch, 2 jobs | decompose passes | whole check passes | segments out | turning > 45 deg | ends < 0.25 | median coverage p95 | median turning |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| level | fibres x points | batch, 2 jobs | per muscle, median / max | decompose passes | whole check passes | segments out | turning > 45 deg | joints > 45 deg | ends < 0.25 | median coverage p95 | median turning |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
 for level in "${levels[@]}"; do
   dir="$out/$level"
   rm -rf "$dir"
@@ -54,12 +55,20 @@ turning = sum(1 for c in checks if c["turning"]["max_deg"] > 45)
 ends = sum(1 for c in checks if min(c["ends"]["origin"]["share"], c["ends"]["insertion"]["share"]) < 0.25)
 coverage = statistics.median(c["coverage"]["p95"] for c in checks) if checks else float("nan")
 turn = statistics.median(c["turning"]["max_deg"] for c in checks) if checks else float("nan")
+# Joints over 45 degrees summed over the muscles (the hooks and zigzags a modeller sees), and each
+# muscle's own decompose time (its report's seconds.total: read, repair, every try, check).
+joints = sum(c["turning"]["over_45"] for c in checks)
+times = [r["seconds"]["total"] for r in reports if isinstance(r.get("seconds"), dict) and "total" in r["seconds"]]
+time_median = statistics.median(times) if times else float("nan")
+time_max = max(times) if times else float("nan")
 shape = "%d x %d" % (checks[0]["fibres"], checks[0]["points"] // checks[0]["fibres"]) if checks else "-"
-print("| %s | %s | %.0f s | %d of %d | %d of %d | %d | %d | %d | %.2f | %.0f deg |" %
-      (level, shape, seconds, decompose_ok, muscles, passed, len(checks), segments, turning, ends, coverage, turn))
+print("| %s | %s | %.0f s | %.2f / %.1f s | %d of %d | %d of %d | %d | %d | %d | %d | %.2f | %.0f deg |" %
+      (level, shape, seconds, time_median, time_max, decompose_ok, muscles, passed, len(checks), segments, turning,
+       joints, ends, coverage, turn))
 json.dump({"level": level, "lattice": shape, "batch_seconds": seconds, "muscles": muscles,
            "decompose_ok": decompose_ok, "checked": len(checks), "check_pass": passed,
-           "segments_out": segments, "turning_over_45": turning, "ends_under_025": ends,
+           "segments_out": segments, "turning_over_45": turning, "joints_over_45": joints, "ends_under_025": ends,
+           "muscle_seconds_median": time_median, "muscle_seconds_max": time_max,
            "median_coverage_p95": coverage, "median_turning_deg": turn}, open(folder + ".json", "w"))
 PY
 done
