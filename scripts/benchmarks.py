@@ -84,14 +84,18 @@ if quality:
          "Decompose judges inside, inverted cells, coverage and attachment; the whole check adds the "
          "segments between points, the turning angle (45 degrees) and the ends' spread (0.25).")
     emit("")
-    emit("| level | fibres x points | batch, 2 jobs | decompose passes | whole check passes | segments out | "
-         "turning > 45 deg | ends < 0.25 | median coverage p95 | median largest turning |")
-    emit("|---|---|---|---|---|---|---|---|---|---|")
+    emit("| level | fibres x points | batch, 2 jobs | per muscle, median / max | decompose passes | "
+         "whole check passes | segments out | turning > 45 deg | joints > 45 deg | ends < 0.25 | "
+         "median coverage p95 | median largest turning |")
+    emit("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for q in quality:
-        emit("| %s | %s | %.0f s | %d of %d | %d of %d | %d | %d | %d | %.2f | %.0f deg |" % (
-            q["level"], q["lattice"], q["batch_seconds"], q["decompose_ok"], q["muscles"], q["check_pass"],
-            q["checked"], q["segments_out"], q["turning_over_45"], q["ends_under_025"],
-            q["median_coverage_p95"], q["median_turning_deg"]))
+        # Rows written before quality_levels.sh measured per-muscle times and joints show "-".
+        per_muscle = ("%.2f / %.1f s" % (q["muscle_seconds_median"], q["muscle_seconds_max"])
+                      if "muscle_seconds_median" in q else "-")
+        emit("| %s | %s | %.0f s | %s | %d of %d | %d of %d | %d | %d | %s | %d | %.2f | %.0f deg |" % (
+            q["level"], q["lattice"], q["batch_seconds"], per_muscle, q["decompose_ok"], q["muscles"],
+            q["check_pass"], q["checked"], q["segments_out"], q["turning_over_45"],
+            q.get("joints_over_45", "-"), q["ends_under_025"], q["median_coverage_p95"], q["median_turning_deg"]))
     emit("")
 tests = load("tests.json")
 if tests:
