@@ -56,7 +56,8 @@ ends = sum(1 for c in checks if min(c["ends"]["origin"]["share"], c["ends"]["ins
 coverage = statistics.median(c["coverage"]["p95"] for c in checks) if checks else float("nan")
 turn = statistics.median(c["turning"]["max_deg"] for c in checks) if checks else float("nan")
 # Joints over 45 degrees summed over the muscles (the hooks and zigzags a modeller sees), and each
-# muscle's own decompose time (its report's seconds.total: read, repair, every try, check).
+# muscle's own decompose time (its report's seconds.total: repair and every try with its check;
+# reading the mesh and writing the fibres are not in it).
 joints = sum(c["turning"]["over_45"] for c in checks)
 times = [r["seconds"]["total"] for r in reports if isinstance(r.get("seconds"), dict) and "total" in r["seconds"]]
 time_median = statistics.median(times) if times else float("nan")
