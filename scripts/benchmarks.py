@@ -89,13 +89,11 @@ if quality:
          "median coverage p95 | median largest turning |")
     emit("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for q in quality:
-        # Rows written before quality_levels.sh measured per-muscle times and joints show "-".
-        per_muscle = ("%.2f / %.1f s" % (q["muscle_seconds_median"], q["muscle_seconds_max"])
-                      if "muscle_seconds_median" in q else "-")
-        emit("| %s | %s | %.0f s | %s | %d of %d | %d of %d | %d | %d | %s | %d | %.2f | %.0f deg |" % (
-            q["level"], q["lattice"], q["batch_seconds"], per_muscle, q["decompose_ok"], q["muscles"],
-            q["check_pass"], q["checked"], q["segments_out"], q["turning_over_45"],
-            q.get("joints_over_45", "-"), q["ends_under_025"], q["median_coverage_p95"], q["median_turning_deg"]))
+        emit("| %s | %s | %.0f s | %.2f / %.1f s | %d of %d | %d of %d | %d | %d | %d | %d | %.2f | %.0f deg |" % (
+            q["level"], q["lattice"], q["batch_seconds"], q["muscle_seconds_median"], q["muscle_seconds_max"],
+            q["decompose_ok"], q["muscles"], q["check_pass"], q["checked"], q["segments_out"],
+            q["turning_over_45"], q["joints_over_45"], q["ends_under_025"], q["median_coverage_p95"],
+            q["median_turning_deg"]))
     emit("")
 tests = load("tests.json")
 if tests:
