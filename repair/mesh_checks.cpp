@@ -188,6 +188,13 @@ Topology topology_of(const TriangleMesh& m) {
 
 namespace detail {
 
+bool is_oriented_manifold_soup(const TriangleMesh& soup) {
+  for (const Triangle& t : soup.triangles)
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) return false;
+  const Topology topo = topology_of(soup);
+  return topo.non_manifold_edges == 0 && topo.misoriented_edges == 0 && topo.non_manifold_vertices == 0;
+}
+
 MeshCensus census_of_triangles(const TriangleMesh& mesh, bool count_intersections) {
   MeshCensus c;
   const Topology topo = topology_of(mesh);

@@ -97,15 +97,21 @@ class RepairPipeline {
     for (const Triangle& t : cleaned.triangles)
       polygons.push_back(
           {static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]), static_cast<std::size_t>(t[2])});
+    bool already_oriented = false;
     step(
         "orient_soup",
         [&] {
+          // A soup that already is an oriented 2-manifold (every clean export) is left as it is:
+          // the orienter would change nothing, and it and CGAL's own test cost a third of the repair.
+          already_oriented = detail::is_oriented_manifold_soup(cleaned);
+          if (already_oriented) return 0L;
           const std::size_t before = points.size();
           PMP::orient_polygon_soup(points, polygons);
           return static_cast<long>(points.size() - before);
         },
         "points duplicated to split non-manifold vertices and edges");
-    if (!PMP::is_polygon_soup_a_polygon_mesh(polygons)) throw NeedsWrap{"the oriented soup is not a polygon mesh"};
+    if (!already_oriented && !PMP::is_polygon_soup_a_polygon_mesh(polygons))
+      throw NeedsWrap{"the oriented soup is not a polygon mesh"};
 
     Mesh mesh;
     PMP::polygon_soup_to_polygon_mesh(points, polygons, mesh);

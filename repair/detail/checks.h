@@ -25,6 +25,11 @@ double hausdorff_distance(const TriangleMesh& a, const TriangleMesh& b, int samp
 /// for a mesh whose faces were already tested by the caller and not moved since.
 std::string verify_genus0(const TriangleMesh& mesh, bool test_intersections);
 
+/// Whether a triangle soup already is what orienting it would make: every face with three
+/// distinct corners, every edge in at most two faces, those two running it in opposite
+/// directions, and the faces round each vertex one fan (the soup builds a halfedge mesh as it is).
+bool is_oriented_manifold_soup(const TriangleMesh& soup);
+
 /// A face's key: its three corner coordinates, sorted, as bytes (the same for either orientation).
 std::string face_key(std::array<Vec3, 3> corners);
 
