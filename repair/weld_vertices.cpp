@@ -1,5 +1,6 @@
 #include "repair/weld_vertices.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
@@ -67,13 +68,35 @@ WeldResult weld_vertices(const std::vector<Vec3>& points, double tolerance) {
   } else {
     const double inv = 1.0 / tolerance;
     const double tol2 = tolerance * tolerance;
+    // Exact copies (an STL file repeats each corner in every face round it) are united first, by
+    // sorting, and only one point of each copy group enters the grid: the groups come out the
+    // same, with a fraction of the grid lookups.
+    std::vector<int> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    auto less = [&](int a, int b) {
+      const Vec3& p = points[a];
+      const Vec3& q = points[b];
+      if (p[0] != q[0]) return p[0] < q[0];
+      if (p[1] != q[1]) return p[1] < q[1];
+      if (p[2] != q[2]) return p[2] < q[2];
+      return a < b;
+    };
+    std::sort(order.begin(), order.end(), less);
+    std::vector<int> distinct;
+    distinct.reserve(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      if (k > 0 && points[order[k]] == points[order[k - 1]])
+        groups.unite(order[k - 1], order[k]);
+      else
+        distinct.push_back(order[k]);
+    }
     std::unordered_map<Cell, std::vector<int>, CellHash> grid;
-    grid.reserve(n);
+    grid.reserve(distinct.size());
     auto cell_of = [&](const Vec3& p) {
       return Cell{static_cast<std::int64_t>(std::floor(p[0] * inv)), static_cast<std::int64_t>(std::floor(p[1] * inv)),
                   static_cast<std::int64_t>(std::floor(p[2] * inv))};
     };
-    for (std::size_t i = 0; i < n; ++i) {
+    for (const int i : distinct) {
       const Cell c = cell_of(points[i]);
       for (int dx = -1; dx <= 1; ++dx)
         for (int dy = -1; dy <= 1; ++dy)
@@ -81,9 +104,9 @@ WeldResult weld_vertices(const std::vector<Vec3>& points, double tolerance) {
             auto it = grid.find(Cell{c[0] + dx, c[1] + dy, c[2] + dz});
             if (it == grid.end()) continue;
             for (int j : it->second)
-              if ((points[j] - points[i]).squaredNorm() <= tol2) groups.unite(j, static_cast<int>(i));
+              if ((points[j] - points[i]).squaredNorm() <= tol2) groups.unite(j, i);
           }
-      grid[c].push_back(static_cast<int>(i));
+      grid[c].push_back(i);
     }
   }
 
