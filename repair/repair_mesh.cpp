@@ -102,7 +102,7 @@ class RepairPipeline {
         "orient_soup",
         [&] {
           // A soup that already is an oriented 2-manifold (every clean export) is left as it is:
-          // the orienter would change nothing, and it and CGAL's own test cost a third of the repair.
+          // the orienter would change nothing, so neither it nor CGAL's soup test need run.
           already_oriented = detail::is_oriented_manifold_soup(cleaned);
           if (already_oriented) return 0L;
           const std::size_t before = points.size();
