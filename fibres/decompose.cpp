@@ -723,29 +723,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
                                landmarks.given() && options.strip.join));
     settle_with_contact(round + 1 < options.cast_rounds ? rough : options.settle);
   }
-  // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
-  // containment.
-  // The untangled lattice before its segment attempt, when that was kept (the fallback below). A
-  // crossing template's fibres are drawn through the lattice, not along its lines: no attempt.
   const bool crossing_kind = springs::crosses_lattice(options.kind);
-  springs::SpringSystem unheld;
-  bool has_unheld = false;
-  if (options.untangle_cells) {
-    stage_started("untangle");
-    const LatticeUntangleReport untangled =
-        untangle_lattice(lattice, system, query, muscle_length(muscle), options.untangle, &areas,
-                         options.contact_segments && !crossing_kind ? &segment_contact : nullptr, &unheld);
-    has_unheld = untangled.segments_kept;
-    pinned += static_cast<int>(untangled.pinned);
-    outside = outside_free_points(system, query);
-    report.untangle = untangled.to_json();
-  }
-  report.settle["cast_faces"] = casts;
-  report.settle["solves"] = solves;
-  report.containment = {
-      {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
-  report.settle_seconds = since(stage);
-
   // Fibres: the interior lattice lines, origin (t = 0) to insertion.
   auto fibres_of = [&](const std::vector<Vec3>& positions) { return lattice_interior_fibres(lattice, positions); };
 
@@ -789,7 +767,65 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     if (moved > 0 || smoothed > 0) fallbacks.push_back({aligned, moved > 0, smoothed > 0});
     return fallbacks;
   };
-  std::vector<Fallback> fallbacks = finish_lines(system, report.containment);
+  // The whole check's segments and smoothness criteria a finished lattice fails, its joints over
+  // 45 degrees and its segments out (compared in that order).
+  auto segment_figures = [&](const springs::SpringSystem& lines) {
+    const double max_turning = CheckOptions{}.max_turning_angle_deg;
+    const long crossing = crossing_segment_count(lattice, lines, query, segment_contact),
+               sharp = sharp_joints(lattice, lines.positions, max_turning);
+    return std::array<long, 3>{(crossing > 0 ? 1 : 0) + (sharp > 0 ? 1 : 0), sharp, crossing};
+  };
+
+  // Untangling (fibres/untangle_lattice.h): the cells the settle left inverted are unfolded, with
+  // containment.
+  // The untangled lattice before its segment attempt, when that was kept (the fallback below). A
+  // crossing template's fibres are drawn through the lattice, not along its lines: no attempt.
+  // The attempt runs only where the lattice finished without it fails a segments or smoothness
+  // criterion: on a tie the result without it is kept below, so it could not change the choice.
+  // That finished lattice is kept (`asked`) and serves below instead of finishing it again.
+  springs::SpringSystem unheld;
+  bool has_unheld = false;
+  struct Finished {
+    springs::SpringSystem before, lines;  // the lattice asked about, and finished
+    std::vector<Fallback> fallbacks;
+    nlohmann::json report = nlohmann::json::object();
+    std::array<long, 3> figures{};
+  };
+  std::optional<Finished> asked;
+  auto segments_needed = [&](const springs::SpringSystem& untangled) {
+    asked.emplace();
+    asked->before = asked->lines = untangled;
+    asked->fallbacks = finish_lines(asked->lines, asked->report);
+    asked->figures = segment_figures(asked->lines);
+    return asked->figures != std::array<long, 3>{0, 0, 0};
+  };
+  if (options.untangle_cells) {
+    stage_started("untangle");
+    const LatticeUntangleReport untangled = untangle_lattice(
+        lattice, system, query, muscle_length(muscle), options.untangle, &areas,
+        options.contact_segments && !crossing_kind ? &segment_contact : nullptr, &unheld, segments_needed);
+    has_unheld = untangled.segments_kept;
+    pinned += static_cast<int>(untangled.pinned);
+    outside = outside_free_points(system, query);
+    report.untangle = untangled.to_json();
+  }
+  report.settle["cast_faces"] = casts;
+  report.settle["solves"] = solves;
+  report.containment = {
+      {"rounds", rounds}, {"anchored_points", anchored}, {"pinned_points", pinned}, {"outside_after", outside.size()}};
+  report.settle_seconds = since(stage);
+
+  // The finished lattice the untangling asked about, where it is the one to finish here.
+  auto take_asked = [&](springs::SpringSystem& lines, nlohmann::json& into, std::vector<Fallback>& fallbacks) {
+    if (!asked || asked->before.positions != lines.positions || asked->before.fixed != lines.fixed) return false;
+    lines = std::move(asked->lines);
+    fallbacks = std::move(asked->fallbacks);
+    for (auto& [key, value] : asked->report.items()) into[key] = std::move(value);
+    asked.reset();
+    return true;
+  };
+  std::vector<Fallback> fallbacks;
+  if (!take_asked(system, report.containment, fallbacks)) fallbacks = finish_lines(system, report.containment);
   // With the untangling's segment attempt kept, the lattice before it is finished too, and the
   // one whose fibres fail fewer of the whole check's segments and smoothness criteria is kept,
   // then the one with fewer joints over its 45 degrees (a hook shows at any scale, a segment just
@@ -805,14 +841,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     }
   };
   if (has_unheld) {
-    unheld_fallbacks = finish_lines(unheld, unheld_report);
-    const double max_turning = CheckOptions{}.max_turning_angle_deg;
-    auto figures = [&](const springs::SpringSystem& lines) {
-      const long crossing = crossing_segment_count(lattice, lines, query, segment_contact),
-                 sharp = sharp_joints(lattice, lines.positions, max_turning);
-      return std::array<long, 3>{(crossing > 0 ? 1 : 0) + (sharp > 0 ? 1 : 0), sharp, crossing};
-    };
-    const auto held_figures = figures(system), unheld_figures = figures(unheld);
+    if (!take_asked(unheld, unheld_report, unheld_fallbacks)) unheld_fallbacks = finish_lines(unheld, unheld_report);
+    const auto held_figures = segment_figures(system), unheld_figures = segment_figures(unheld);
     report.untangle["segments_figures"] = {{"held", held_figures}, {"unheld", unheld_figures}};
     if (!(held_figures < unheld_figures)) {
       std::swap(system, unheld);

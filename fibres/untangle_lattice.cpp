@@ -61,7 +61,8 @@ nlohmann::json LatticeUntangleReport::to_json() const {
           {"leaving_after", leaving_after},
           {"crossing_before", crossing_before},
           {"crossing_after", crossing_after},
-          {"segments_kept", segments_kept}};
+          {"segments_kept", segments_kept},
+          {"segments_needed", segments_needed}};
 }
 
 namespace {
@@ -247,7 +248,8 @@ Vec3 nearest_area_point(const std::vector<Vec3>& area, const Vec3& p) {
 LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
                                        const SurfaceQuery& query, double length, const LatticeUntangleOptions& options,
                                        const Attachments* areas, const SegmentContact* segments,
-                                       springs::SpringSystem* unheld) {
+                                       springs::SpringSystem* unheld,
+                                       const std::function<bool(const springs::SpringSystem&)>& segments_needed) {
   options.validate();
   LatticeUntangleReport report;
   // The area each end layer belongs to (k = 0: origin, k = nz - 1: insertion); empty: the ends
@@ -733,7 +735,8 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     report.leaving_before = report.leaving_after = leaving_count();
     report.crossing_before = report.crossing_after = crossing_segment_count(lattice, system, query, *segments);
   }
-  if (segments && report.crossing_before > 0) {
+  if (segments && report.crossing_before > 0) report.segments_needed = !segments_needed || segments_needed(system);
+  if (report.segments_needed) {
     budget = options.iterations;
     attempt(false, false, everywhere, true);
     runs.push_back({{"attempt", "segments"}});

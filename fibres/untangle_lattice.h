@@ -35,6 +35,7 @@
 #include "morph/surface_query.h"
 #include "springs/lattice.h"
 
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -121,6 +122,9 @@ struct LatticeUntangleReport {
   long leaving_before = 0, leaving_after = 0;
   long crossing_before = 0, crossing_after = 0;  ///< and the segments leaving by more than the check allows
   bool segments_kept = false;
+  /// With segments and segments leaving: whether the caller's `segments_needed` asked for the
+  /// segment attempt (false: the kept result needs nothing it could give, and it did not run).
+  bool segments_needed = false;
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
   /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells, nor, with
@@ -180,11 +184,13 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 /// leaves. It is kept when it folds no more cells, leaves fewer points on leaving segments and no
 /// more segments leaving by more than the tolerance; `unheld` (may be null) then receives the
 /// system as it was before it (the coverage is not guarded: a caller whose check then fails can
-/// fall back on it).
-LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs::SpringSystem& system,
-                                       const SurfaceQuery& query, double muscle_length,
-                                       const LatticeUntangleOptions& options = {}, const Attachments* areas = nullptr,
-                                       const SegmentContact* segments = nullptr,
-                                       springs::SpringSystem* unheld = nullptr);
+/// fall back on it). `segments_needed` (may be empty: always) is asked first, with the kept result,
+/// whether the attempt can help: a caller that finishes the lattice after the untangling and
+/// prefers the result without the attempt on a tie skips a search that cannot change its choice.
+LatticeUntangleReport untangle_lattice(
+    const springs::Lattice& lattice, springs::SpringSystem& system, const SurfaceQuery& query, double muscle_length,
+    const LatticeUntangleOptions& options = {}, const Attachments* areas = nullptr,
+    const SegmentContact* segments = nullptr, springs::SpringSystem* unheld = nullptr,
+    const std::function<bool(const springs::SpringSystem&)>& segments_needed = {});
 
 }  // namespace fascicle

@@ -225,3 +225,39 @@ TEST_CASE("the untangling's segment attempt holds the leaving segments in withou
   for (std::size_t q = 0; q < start.size(); ++q)
     if (plain.system.fixed[q]) CHECK(lattice.system.positions[q] == start[q]);
 }
+
+TEST_CASE("the segment attempt runs only where the caller says it can help", "[fibres][contain][untangle]") {
+  const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
+  const SurfaceQuery query(tube);
+  const double diagonal = bounding_box(tube.positions).diagonal();
+  const CheckOptions check_options;
+  const SegmentContact contact{check_options.end_tolerance * diagonal,
+                               check_options.segment_tolerance * diagonal,
+                               check_options.excursion_samples,
+                               {}};
+  for (const bool needed : {false, true}) {
+    springs::Lattice lattice = bent_lattice();
+    const std::vector<Vec3> start = lattice.system.positions;
+    std::vector<Vec3> asked_with;
+    int asked = 0;
+    const LatticeUntangleReport report = untangle_lattice(
+        lattice, lattice.system, query, muscle_length(tube), {}, nullptr, &contact, nullptr,
+        [&](const springs::SpringSystem& untangled) {
+          ++asked;
+          asked_with = untangled.positions;
+          return needed;
+        });
+    CAPTURE(needed);
+    CHECK(report.crossing_before > 0);
+    CHECK(asked == 1);
+    CHECK(asked_with == start);  // the kept result: nothing was folded
+    CHECK(report.segments_needed == needed);
+    CHECK(report.segments_kept == needed);
+    // Skipped, the lattice is the kept result and the report says the segments stayed out.
+    if (!needed) {
+      CHECK(lattice.system.positions == start);
+      CHECK(report.crossing_after == report.crossing_before);
+      CHECK(report.to_json().at("segments_needed") == false);
+    }
+  }
+}
