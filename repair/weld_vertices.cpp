@@ -47,49 +47,33 @@ WeldResult weld_vertices(const std::vector<Vec3>& points, double tolerance) {
   UnionFind groups(n);
   using Cell = std::array<std::int64_t, 3>;
 
-  if (tolerance <= 0.0) {
-    // Exact duplicates: hash the coordinates' bit patterns (+0.0 and -0.0 treated alike).
-    struct Key {
-      std::size_t operator()(const Vec3& p) const {
-        std::size_t h = 0;
-        for (int k = 0; k < 3; ++k) h = h * 1000003u ^ std::hash<double>()(p[k] == 0.0 ? 0.0 : p[k]);
-        return h;
-      }
-    };
-    struct Eq {
-      bool operator()(const Vec3& a, const Vec3& b) const { return a == b; }
-    };
-    std::unordered_map<Vec3, int, Key, Eq> first;
-    first.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      auto [it, inserted] = first.emplace(points[i], static_cast<int>(i));
-      if (!inserted) groups.unite(it->second, static_cast<int>(i));
-    }
-  } else {
+  // Exact copies (an STL file repeats each corner in every face round it) are united first, by
+  // sorting (+0.0 and -0.0 alike, NaN last and never united); with a tolerance only one point of
+  // each copy group then enters the grid: the groups come out the same, with a fraction of the
+  // grid lookups.
+  auto compare = [](double a, double b) {
+    const bool na = std::isnan(a), nb = std::isnan(b);
+    if (na || nb) return static_cast<int>(na) - static_cast<int>(nb);
+    return a < b ? -1 : (b < a ? 1 : 0);
+  };
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    for (int k = 0; k < 3; ++k)
+      if (const int c = compare(points[a][k], points[b][k])) return c < 0;
+    return a < b;
+  });
+  std::vector<int> distinct;
+  distinct.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k > 0 && points[order[k]] == points[order[k - 1]])
+      groups.unite(order[k - 1], order[k]);
+    else
+      distinct.push_back(order[k]);
+  }
+  if (tolerance > 0.0) {
     const double inv = 1.0 / tolerance;
     const double tol2 = tolerance * tolerance;
-    // Exact copies (an STL file repeats each corner in every face round it) are united first, by
-    // sorting, and only one point of each copy group enters the grid: the groups come out the
-    // same, with a fraction of the grid lookups.
-    std::vector<int> order(n);
-    std::iota(order.begin(), order.end(), 0);
-    auto less = [&](int a, int b) {
-      const Vec3& p = points[a];
-      const Vec3& q = points[b];
-      if (p[0] != q[0]) return p[0] < q[0];
-      if (p[1] != q[1]) return p[1] < q[1];
-      if (p[2] != q[2]) return p[2] < q[2];
-      return a < b;
-    };
-    std::sort(order.begin(), order.end(), less);
-    std::vector<int> distinct;
-    distinct.reserve(n);
-    for (std::size_t k = 0; k < n; ++k) {
-      if (k > 0 && points[order[k]] == points[order[k - 1]])
-        groups.unite(order[k - 1], order[k]);
-      else
-        distinct.push_back(order[k]);
-    }
     std::unordered_map<Cell, std::vector<int>, CellHash> grid;
     grid.reserve(distinct.size());
     auto cell_of = [&](const Vec3& p) {

@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 using namespace fascicle;
 
@@ -72,6 +73,19 @@ TEST_CASE("weld merges exact and near duplicates within tolerance only", "[repai
   CHECK(near.representative[5] == 5);
   // Representatives keep their own position: the first point of each group.
   CHECK(near.representative[3] == 3);
+}
+
+TEST_CASE("exact welding treats signed zeros alike and never merges a NaN point", "[repair]") {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<Vec3> pts = {Vec3(nan, 0, 0), Vec3(1, -0.0, 2), Vec3(nan, 0, 0),
+                                 Vec3(1, 0.0, 2), Vec3(0, 0, 0),    Vec3(1, 0.0, 2)};
+  const WeldResult exact = weld_vertices(pts, 0.0);
+  CHECK(exact.merged == 2);
+  CHECK(exact.representative[0] == 0);
+  CHECK(exact.representative[2] == 2);
+  CHECK(exact.representative[3] == 1);  // the lowest index of the group
+  CHECK(exact.representative[5] == 1);
+  CHECK(exact.representative[4] == 4);
 }
 
 TEST_CASE("clean_soup triangulates polygons and drops degenerate and duplicate faces", "[repair]") {
