@@ -468,6 +468,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     int outside_stalled = 0;             // rounds in a row since the last that left fewer outside
     for (int round = 0;; ++round) {
       const std::size_t runs_before = runs.size();
+      const std::vector<Vec3> round_start(system.positions.begin(), system.positions.begin() + lattice.point_count());
       long previous_free = -1;  // free points of the previous run of this round
       // Local first: only the points within `radius` lattice steps (Chebyshev) of an inverted
       // cell or an anchored point move, the rest of the settled lattice stays as it is; the
@@ -535,6 +536,12 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
                                      }),
                       leaving.end());
       }
+      // A segment round after the first that moved no lattice point left everything as the round
+      // before did but the pins' weights: the untangling found no step that lowers its energy
+      // (the cells' barrier against the pins that hold the segments in), and further rounds stall
+      // alike. (The other attempts go on: their stronger pins can still move a point later.)
+      const bool unmoved = hold_segments && round > 0 &&
+                           std::equal(round_start.begin(), round_start.end(), system.positions.begin());
       if (runs.size() > runs_before) {
         runs.back()["outside"] = outside.size();
         if (hold_segments) runs.back()["leaving_points"] = leaving.size();
@@ -550,6 +557,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       std::string stop = outside.empty() && leaving.empty() ? "contained"
                          : round == options.contact_rounds  ? "rounds"
                          : budget <= 0                      ? "budget"
+                         : unmoved                          ? "unmoved"
                                                             : "";
       if (stop.empty()) {
         // Rounds that do not leave fewer points outside than the best round before: the soft

@@ -128,7 +128,8 @@ struct LatticeUntangleReport {
   /// Why the attempts' containment rounds ended, with how often: contained (no point outside),
   /// rounds (contact_rounds done), budget (iterations spent), outside_stalled
   /// (contact_stall_rounds), fold_stalled (a round that did not fold fewer cells, nor, with
-  /// fold_stall_needs_outside_stall, leave fewer points outside).
+  /// fold_stall_needs_outside_stall, leave fewer points outside), unmoved (a segment round after
+  /// the first that moved no lattice point).
   nlohmann::json stops = nlohmann::json::object();
   long iterations = 0;  ///< L-BFGS iterations of all runs
   nlohmann::json to_json() const;
@@ -181,7 +182,7 @@ long inverted_tets(const std::vector<Vec3>& x, const std::vector<UntangleTet>& t
 /// line's segment that leaves (leaving_segment_shifts(); the fibre ends' segments may touch the
 /// surface within segments->end_tolerance) get half-space pins where that segment comes back
 /// inside, 4x stronger each round like the outside points', and the rounds go on while one
-/// leaves. It is kept when it folds no more cells, leaves fewer points on leaving segments and no
+/// leaves and a round still moves a point. It is kept when it folds no more cells, leaves fewer points on leaving segments and no
 /// more segments leaving by more than the tolerance; `unheld` (may be null) then receives the
 /// system as it was before it (the coverage is not guarded: a caller whose check then fails can
 /// fall back on it). `segments_needed` (may be empty: always) is asked first, with the kept result,

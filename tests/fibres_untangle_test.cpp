@@ -816,3 +816,31 @@ TEST_CASE(
   CHECK(d.report.quality.attachment.origin_max <= 0.02);
   CHECK(d.report.quality.attachment.insertion_max <= 0.02);
 }
+
+TEST_CASE("untangle in the decomposition: segment rounds that move no point end the segment attempt",
+          "[fibres][untangle][data][slow]") {
+  FASCICLE_REQUIRE_DATA();
+  // LHDL right psoas: after the free-ring attempt about a hundred points stay outside and three
+  // hundred on leaving segments; the segment attempt's pins reach the cells' barrier within a
+  // few rounds, and a round that moves nothing ends it instead of running all contact rounds.
+  const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
+  DecomposeOptions options;
+  options.tries.second_try = false;  // this case is about the untangling of one placement
+  const Decomposition d = decompose(soup, {}, options);
+  const nlohmann::json u = d.report.to_json()["untangle"];
+  REQUIRE(u["segments_needed"].get<bool>());
+  // The segment attempt's rounds are the runs that count the points on leaving segments.
+  int rounds = 0;
+  std::string last_stop;
+  for (const nlohmann::json& run : u["runs"])
+    if (run.contains("leaving_points")) {
+      ++rounds;
+      last_stop = run.value("stop", "");
+    }
+  CHECK(rounds > 1);
+  CHECK(rounds < options.untangle.contact_rounds);
+  CHECK(last_stop == "unmoved");
+  CHECK(u["stops"].value("unmoved", 0) == 1);
+  CHECK(d.report.quality.inverted_cells == 0);
+  CHECK(d.report.quality.inside_fraction == 1.0);
+}
