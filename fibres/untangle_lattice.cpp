@@ -707,27 +707,33 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       kept = name;
       report.pinned = pinned;
     }
+    return n;
   };
   // The ring is freed only after the attempts with it held: a freed ring moves the surface lines,
   // which raises the coverage p95 of muscles the held ring already unfolds.
   const bool everywhere = options.containment_energy && options.containment_energy_everywhere;
-  run_from(settled, false, false, everywhere, "held_ends");
+  const long held = run_from(settled, false, false, everywhere, "held_ends");
+  // A free attempt's result is continued with the ends held only where it left fewer folded cells
+  // than the held ends did from the settled lattice: from a start no better than that one, the
+  // held ends stall on the same folds.
+  auto continue_held = [&](long free_left, bool contain, const std::string& name) {
+    if (inverted_left > 0 && free_left < held) run_from(free_result, false, false, contain, name);
+  };
   if (inverted_left > 0) {
-    run_from(settled, true, false, everywhere, "free_ends");
-    if (inverted_left > 0) run_from(free_result, false, false, everywhere, "free_then_held_ends");
+    const long free_left = run_from(settled, true, false, everywhere, "free_ends");
+    continue_held(free_left, everywhere, "free_then_held_ends");
   }
   if (inverted_left > 0 && options.free_ring) {
     report.free_ring_tried = true;
-    run_from(settled, true, true, options.containment_energy, "free_ring");
-    if (inverted_left > 0) run_from(free_result, false, false, everywhere, "free_ring_then_held_ends");
+    const long ring_left = run_from(settled, true, true, options.containment_energy, "free_ring");
+    continue_held(ring_left, everywhere, "free_ring_then_held_ends");
     // containment_retry: the free-ring attempts again with the other containment setting (only
     // where the first left folds); the fewest folded cells stay, the first on a tie.
     if (inverted_left > 0 && options.containment_retry) {
       const bool other = !options.containment_energy;
       const std::string tag = other ? "_contained" : "_uncontained";
-      run_from(settled, true, true, other, "free_ring" + tag);
-      if (inverted_left > 0)
-        run_from(free_result, false, false, everywhere && other, "free_ring" + tag + "_then_held_ends");
+      const long other_left = run_from(settled, true, true, other, "free_ring" + tag);
+      continue_held(other_left, everywhere && other, "free_ring" + tag + "_then_held_ends");
     }
   }
   // The segment attempt (with `segments`): from the kept result, ends and ring held, rounds whose

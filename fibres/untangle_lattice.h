@@ -13,7 +13,8 @@
 /// settled lattice with the ends free (each end free within a ball round the nearest point of its
 /// attachment area, end_area_margin, or without areas held by a soft pin at its cast place, at
 /// most `end_shift` of the muscle length from it), and a third goes on from there with the ends
-/// held. While cells still stay folded, the last two run again with the surface ring free too
+/// held (only where the second left fewer folded cells than the first: from a start no better,
+/// the held ends stall on the same folds; likewise for each continuation below). While cells still stay folded, the last two run again with the surface ring free too
 /// (free_ring: each ring point held on a plane just under the surface, sliding along it; the ring
 /// is freed only after the attempts with it held, since a freed ring changes the coverage of
 /// muscles the held ring already unfolds; in these attempts the containment is also part of the
