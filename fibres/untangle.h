@@ -37,9 +37,10 @@ struct UntangleOptions {
   int history = 8;            ///< L-BFGS pairs kept, >= 1 (default 8)
   int stage_iterations = 40;  ///< L-BFGS iterations per eps stage, >= 1 (default 40)
   int max_stages = 60;        ///< eps stages at most, >= 1 (default 60)
-  /// Stop when neither the smallest det J has grown nor the inverted count fallen for this
-  /// many stages, >= 1 (default 15).
-  int stall_stages = 15;
+  /// Stop when neither the smallest det J has grown nor the inverted count fallen (nor a contained
+  /// point come inside) for this many stages, >= 1 (default 5: the lattice untangling's later
+  /// attempts start elsewhere, so a longer wait on resisting folds only costs time).
+  int stall_stages = 5;
   /// Least sigma of the eps rule (each stage aims eps at (1 - sigma) chi(min det J)), (0, 1) (default
   /// 0.1, the paper's: larger values take fewer stages but leave some folds).
   double min_sigma = 0.1;
