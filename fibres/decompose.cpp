@@ -816,11 +816,14 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   report.settle_seconds = since(stage);
 
   // The finished lattice the untangling asked about, where it is the one to finish here.
-  auto take_asked = [&](springs::SpringSystem& lines, nlohmann::json& into, std::vector<Fallback>& fallbacks) {
+  // Its segment figures go to `figures` where asked for.
+  auto take_asked = [&](springs::SpringSystem& lines, nlohmann::json& into, std::vector<Fallback>& fallbacks,
+                        std::array<long, 3>* figures = nullptr) {
     if (!asked || asked->before.positions != lines.positions || asked->before.fixed != lines.fixed) return false;
     lines = std::move(asked->lines);
     fallbacks = std::move(asked->fallbacks);
     for (auto& [key, value] : asked->report.items()) into[key] = std::move(value);
+    if (figures != nullptr) *figures = asked->figures;
     asked.reset();
     return true;
   };
@@ -841,8 +844,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     }
   };
   if (has_unheld) {
-    if (!take_asked(unheld, unheld_report, unheld_fallbacks)) unheld_fallbacks = finish_lines(unheld, unheld_report);
-    const auto held_figures = segment_figures(system), unheld_figures = segment_figures(unheld);
+    std::array<long, 3> unheld_figures{};
+    if (!take_asked(unheld, unheld_report, unheld_fallbacks, &unheld_figures)) {
+      unheld_fallbacks = finish_lines(unheld, unheld_report);
+      unheld_figures = segment_figures(unheld);
+    }
+    const auto held_figures = segment_figures(system);
     report.untangle["segments_figures"] = {{"held", held_figures}, {"unheld", unheld_figures}};
     if (!(held_figures < unheld_figures)) {
       std::swap(system, unheld);

@@ -56,6 +56,14 @@ CheckReport check(const springs::Lattice& lattice, const TriangleMesh& tube) {
                       options);
 }
 
+/// The segment contact the fibre check uses on `mesh` (its default tolerances).
+SegmentContact check_contact(const TriangleMesh& mesh) {
+  const double diagonal = bounding_box(mesh.positions).diagonal();
+  const CheckOptions check_options;
+  return {check_options.end_tolerance * diagonal, check_options.segment_tolerance * diagonal,
+          check_options.excursion_samples, {}};
+}
+
 }  // namespace
 
 TEST_CASE("segments cutting the inner wall of a bend are moved back inside without folding a cell",
@@ -159,12 +167,7 @@ TEST_CASE("the shifts of the leaving segments push their free points out of the 
   const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
   const SurfaceQuery query(tube);
   const springs::Lattice lattice = bent_lattice();
-  const double diagonal = bounding_box(tube.positions).diagonal();
-  const CheckOptions check_options;
-  const SegmentContact contact{check_options.end_tolerance * diagonal,
-                               check_options.segment_tolerance * diagonal,
-                               check_options.excursion_samples,
-                               {}};
+  const SegmentContact contact = check_contact(tube);
   CHECK(crossing_segment_count(lattice, lattice.system, query, contact) == check(lattice, tube).crossing_segments);
   CHECK(crossing_segment_count(lattice, lattice.system, query, contact) > 0);
 
@@ -191,12 +194,7 @@ TEST_CASE("the untangling's segment attempt holds the leaving segments in withou
           "[fibres][contain][untangle]") {
   const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
   const SurfaceQuery query(tube);
-  const double diagonal = bounding_box(tube.positions).diagonal();
-  const CheckOptions check_options;
-  const SegmentContact contact{check_options.end_tolerance * diagonal,
-                               check_options.segment_tolerance * diagonal,
-                               check_options.excursion_samples,
-                               {}};
+  const SegmentContact contact = check_contact(tube);
 
   // Without segments there is nothing to unfold: the lattice stays as it is.
   springs::Lattice plain = bent_lattice();
@@ -229,12 +227,7 @@ TEST_CASE("the untangling's segment attempt holds the leaving segments in withou
 TEST_CASE("the segment attempt runs only where the caller says it can help", "[fibres][contain][untangle]") {
   const TriangleMesh tube = make_bent_tube(R, r, kPi, 64);
   const SurfaceQuery query(tube);
-  const double diagonal = bounding_box(tube.positions).diagonal();
-  const CheckOptions check_options;
-  const SegmentContact contact{check_options.end_tolerance * diagonal,
-                               check_options.segment_tolerance * diagonal,
-                               check_options.excursion_samples,
-                               {}};
+  const SegmentContact contact = check_contact(tube);
   for (const bool needed : {false, true}) {
     springs::Lattice lattice = bent_lattice();
     const std::vector<Vec3> start = lattice.system.positions;
