@@ -290,6 +290,10 @@ void add_decompose_command(CLI::App& app) {
                   "Cast the rim of each attachment face with its fibre ends (true) or leave it where the placement "
                   "put it (false)")
       ->capture_default_str();
+  cmd->add_option("--cast-by-azimuth", o.cast_by_azimuth,
+                  "Shrink the fibre ends' cast by one factor per azimuth round the cast axis (true) or by one "
+                  "factor for the whole face (false)")
+      ->capture_default_str();
   cmd->add_option("--align-ends", o.align_ends,
                   "Continue each fibre's end along its last segment onto its attachment area where that folds no "
                   "cell (true) or keep the cast ends (false)")

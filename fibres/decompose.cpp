@@ -1,6 +1,7 @@
 #include "fibres/decompose.h"
 
 
+#include "fibres/azimuth_cast.h"
 #include "fibres/fibre_grid.h"
 #include "fibres/strip_cast.h"
 #include "geometry/errors.h"
@@ -169,7 +170,7 @@ namespace {
 // and one across it (fibres/strip_cast.h).
 nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice& lattice, const TriangleMesh& muscle,
                           const Attachments& areas, double radius, const SurfaceQuery& query, bool cast_rim,
-                          bool strip = false) {
+                          bool strip, bool by_azimuth) {
   nlohmann::json out = nlohmann::json::array();
   const double reach = 4.0 * (bounding_box(muscle.positions).diagonal() + 1e-300);
   const int hand = lattice_handedness(system, lattice);
@@ -277,7 +278,22 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       }
       return true;
     };
-    for (std::size_t a = 0; a < axes.size() && !placed && !strip; ++a) {
+    std::optional<AzimuthCast> azimuth;
+    for (std::size_t a = 0; a < axes.size() && !placed && !strip && by_azimuth; ++a) {
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
+        return query.first_hit(start, axis, reach, end);
+      };
+      azimuth = cast_azimuth_face(
+          c1, offsets, axes[a], hit, [&](const Vec3& end) { return area->near(end, radius); },
+          [&](const Vec3& p) { return query.inside(p); });
+      placed = azimuth->placed;
+      used_axis = a;
+      if (placed) {
+        ends = azimuth->ends;
+        lambda = azimuth->smallest() * 0.8;  // divided by 0.8 below, as the single factor's last step
+      }
+    }
+    for (std::size_t a = 0; a < axes.size() && !placed && !strip && !by_azimuth; ++a) {
       lambda = 1.0;
       for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) placed = cast_all(lambda, axes[a], ends);
       used_axis = a;
@@ -294,11 +310,11 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
       // the ends, along the same axis (a rim point need not lie in the area); all or nothing.
       // At lambda = 1 the layer's own rim lies on the surface: start a little inside.
       if (cast_rim) {
-        const double rim_lambda = std::min(lambda, 0.95);
         std::vector<Vec3> rim_hits;
         for (const Vec3& offset : rim_offsets) {
           // A start the fit puts outside the muscle (a fit wider than a bent end) can miss: its
           // closest surface point instead.
+          const double rim_lambda = std::min(azimuth && azimuth->placed ? azimuth->factor(offset) : lambda, 0.95);
           const Vec3 start = c1 + rim_lambda * offset;
           Vec3 hit;
           if (!query.first_hit(start, axes[used_axis], reach, hit)) hit = query.closest_point(start).position;
@@ -314,6 +330,7 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     out.push_back({{"face", k_end == 0 ? "origin" : "insertion"},
                    {"cast", placed},
                    {"shrink", placed ? lambda : 0.0},
+                   {"shrink_largest", azimuth && azimuth->placed ? azimuth->largest() : placed ? lambda : 0.0},
                    {"from", folded ? (fit_layer == k1 ? "affine_fit"
                                       : fit_layer < 0 ? "layer_folded"
                                                       : "affine_fit_deeper")
@@ -720,7 +737,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   const double end_radius = options.placement.region_radius * muscle_length(muscle);
   for (int round = 0; round < options.cast_rounds; ++round) {
     casts.push_back(cast_faces(system, lattice, muscle, areas, end_radius, query, options.cast_rim,
-                               landmarks.given() && options.strip.join));
+                               landmarks.given() && options.strip.join, options.cast_by_azimuth));
     settle_with_contact(round + 1 < options.cast_rounds ? rough : options.settle);
   }
   const bool crossing_kind = springs::crosses_lattice(options.kind);

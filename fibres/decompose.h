@@ -112,6 +112,10 @@ struct DecomposeOptions {
   /// Cast each attachment face's rim (surface-ring points) with its fibre ends (default true;
   /// false: the rim stays where placed, which next to a narrow end can lie inside the cast ends).
   bool cast_rim = true;
+  /// Shrink the cast's starting layer by one factor per azimuth round the cast axis (true,
+  /// fibres/azimuth_cast.h) or by one factor for the whole face (false) (default true: a side of
+  /// the area narrow seen from the layer's centre then shrinks only its own side of the face).
+  bool cast_by_azimuth = true;
   int soft_contact_rounds = 3;  ///< first containment rounds that anchor outside points by springs
                                 ///< (4x stiffer each round) instead of fixing them, >= 0 (default 3)
   int contact_rounds = 6;       ///< containment rounds per settle (step 6), >= 0 (default 6)

@@ -333,6 +333,10 @@ TEST_CASE("a large lattice's harmonic start is solved by multigrid to the direct
   direct.fibres = 400;
   direct.resolution = 20;
   direct.harmonic_direct_points = 1'000'000;
+  // The fibres compare to round-off only where the untangling has little to do (it stops at a
+  // tolerance, so it carries round-off differences of its start up to that): the capsule's settle
+  // with one cast factor for the whole face folds a few cells, with one per azimuth more.
+  direct.cast_by_azimuth = false;
   DecomposeOptions multigrid = direct;
   multigrid.harmonic_direct_points = 0;
   const Decomposition a = decompose_repaired(mesh, Landmarks{}, direct);
