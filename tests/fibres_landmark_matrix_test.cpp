@@ -220,6 +220,7 @@ TEST_CASE(
     options.tries.second_try = false;
     options.strip.join = pair.strip;
     options.placement.corner_twist_deg = pair.twist;
+    options.cast_by_azimuth = false;  // the landmark disks' cast as when the case was found (one factor)
     REQUIRE(options.untangle.contact_rounds == 16);  // the defaults
     REQUIRE(options.untangle.fold_stall_needs_outside_stall);
     const auto run = [&](const DecomposeOptions& o) {
