@@ -23,7 +23,7 @@ keep() { mv "$1.tmp" "$1"; }
 
 if want machine; then
   stamp machine
-  python3 - "$out/machine.json.tmp" "$program" <<'PY'
+  python3 - "$out/machine.json.tmp" "$program" "$out/machine.json" "$sections" <<'PY'
 import json, os, platform, subprocess, sys, datetime
 cpu = ""
 flags = ""
@@ -41,11 +41,22 @@ def git(*args):
         return subprocess.run(["git", *args], capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return ""
-json.dump({"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(memory / 2**30, 1),
+machine = {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(memory / 2**30, 1),
            "avx2": "avx2" in flags, "avx512": "avx512f" in flags, "os": platform.platform(),
            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d"),
-           "commit": git("rev-parse", "--short", "HEAD"), "dirty": bool(git("status", "--porcelain", "-uno"))},
-          open(sys.argv[1], "w"), indent=1)
+           "commit": git("rev-parse", "--short", "HEAD"), "dirty": bool(git("status", "--porcelain", "-uno"))}
+# Where and when each part was last measured: a run of some parts keeps the others' figures, and
+# the tables say which machine and commit gave them.
+try:
+    parts = json.load(open(sys.argv[3])).get("sections", {})
+except (OSError, ValueError):
+    parts = {}
+stamp = {k: machine[k] for k in ("cpu", "avx512", "commit", "dirty", "date")}
+for part in sys.argv[4].split():
+    if part != "machine":
+        parts[part] = stamp
+machine["sections"] = parts
+json.dump(machine, open(sys.argv[1], "w"), indent=1)
 PY
   keep "$out/machine.json"
 fi

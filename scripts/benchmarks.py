@@ -71,6 +71,18 @@ emit("")
 emit("Machine: %s; %s; commit %s%s, %s." % (where, machine.get("os", "?"), machine.get("commit", "?"),
                                           " (with local changes)" if machine.get("dirty") else "",
                                           machine.get("date", "?")))
+# Parts last measured in an earlier run (`BENCH_SECTIONS`), on another machine or commit.
+this_run = {k: machine.get(k) for k in ("cpu", "avx512", "commit", "dirty", "date")}
+earlier = {}
+for part, stamp in sorted(machine.get("sections", {}).items()):
+    if stamp != this_run:
+        key = "%s%s, commit %s%s, %s" % (stamp.get("cpu", "?"), ", AVX-512" if stamp.get("avx512") else "",
+                                         stamp.get("commit", "?"), " (with local changes)" if stamp.get("dirty") else "",
+                                         stamp.get("date", "?"))
+        earlier.setdefault(key, []).append(part)
+for key, parts in earlier.items():
+    emit("")
+    emit("Parts from an earlier run (%s): %s." % (key, ", ".join(parts)))
 emit("")
 
 # ---------------------------------------------------------------- quality levels and tests
