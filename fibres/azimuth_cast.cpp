@@ -33,7 +33,7 @@ double AzimuthCast::largest() const { return placed ? *std::max_element(bins.beg
 AzimuthCast cast_azimuth_face(const Vec3& centre, const std::vector<Vec3>& offsets, const Vec3& axis,
                               const std::function<bool(const Vec3&, const Vec3&, Vec3&)>& hit,
                               const std::function<bool(const Vec3&)>& near,
-                              const std::function<bool(const Vec3&)>& inside, int steps, bool per_azimuth) {
+                              const std::function<bool(const Vec3&)>& inside, int steps) {
   AzimuthCast out;
   const Vec3 n = axis.normalized();
   if (offsets.empty() || steps < 1 || !n.allFinite()) return out;
@@ -55,12 +55,6 @@ AzimuthCast cast_azimuth_face(const Vec3& centre, const std::vector<Vec3>& offse
   }
   if (!all) return out;
   const double uniform = step[first];
-  if (!per_azimuth) {
-    out.bins.fill(uniform);
-    out.placed = true;
-    out.ends = std::move(ends);
-    return out;
-  }
   // Its ends' depths along the axis: a larger factor for an end is kept only while its end lands
   // on the area within them, so that the face stays as deep as the uniform one (an end cast far
   // past the others, along a tendon or into a fold of the area, would pull the lattice with it).

@@ -39,11 +39,9 @@ struct AzimuthCast {
 /// whether a point lies inside the muscle (a factor above the uniform one needs its start inside).
 /// Steps 1, 0.8, 0.8^2, ... (`steps` of them, >= 1). Not placed when no step puts every end on the
 /// area; an end that misses between its bins' steps lowers them (never below the uniform factor).
-/// With `per_azimuth` false every bin keeps the uniform factor (one shrink for the whole face).
 AzimuthCast cast_azimuth_face(const Vec3& centre, const std::vector<Vec3>& offsets, const Vec3& axis,
                               const std::function<bool(const Vec3&, const Vec3&, Vec3&)>& hit,
                               const std::function<bool(const Vec3&)>& near,
-                              const std::function<bool(const Vec3&)>& inside, int steps = 20,
-                              bool per_azimuth = true);
+                              const std::function<bool(const Vec3&)>& inside, int steps = 20);
 
 }  // namespace fascicle

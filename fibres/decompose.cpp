@@ -247,38 +247,60 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     std::vector<Vec3> ends;
     std::size_t used_axis = 0;
     nlohmann::json strip_factors;
-    const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
-      return query.first_hit(start, axis, reach, end);
-    };
-    const auto near = [&](const Vec3& end) { return area->near(end, radius); };
     if (strip) {
       std::vector<Vec3> area_points;
       for (const SurfacePoint& p : area->points) area_points.push_back(p.position);
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
+        return query.first_hit(start, axis, reach, end);
+      };
+      const auto near = [&](const Vec3& end) { return area->near(end, radius); };
       for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
         const StripCast cast = cast_strip_face(c1, offsets, axes[a], area_points, hit, near);
         placed = cast.placed;
         used_axis = a;
         if (placed) {
           ends = cast.ends;
-          // Reported as one shrink, the geometric mean of the two.
-          lambda = std::sqrt(cast.lambda_long * cast.lambda_cross);
+          // Reported as one shrink, the geometric mean of the two (the code below divides the
+          // single-factor search's last factor tried by 0.8, hence the 0.8 here).
+          lambda = std::sqrt(cast.lambda_long * cast.lambda_cross) * 0.8;
           strip_factors = {cast.lambda_long, cast.lambda_cross};
         }
       }
     }
+    // Every end cast from the layer scaled by factor about c1 along axis, or false when one
+    // misses the surface or lands off the area.
+    const auto cast_all = [&](double factor, const Vec3& axis, std::vector<Vec3>& hits) {
+      hits.clear();
+      for (const Vec3& offset : offsets) {
+        Vec3 hit;
+        if (!query.first_hit(c1 + factor * offset, axis, reach, hit) || !area->near(hit, radius)) return false;
+        hits.push_back(hit);
+      }
+      return true;
+    };
     std::optional<AzimuthCast> azimuth;
-    for (std::size_t a = 0; a < axes.size() && !placed && !strip; ++a) {
+    for (std::size_t a = 0; a < axes.size() && !placed && !strip && by_azimuth; ++a) {
+      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
+        return query.first_hit(start, axis, reach, end);
+      };
       azimuth = cast_azimuth_face(
-          c1, offsets, axes[a], hit, near, [&](const Vec3& p) { return query.inside(p); }, 20, by_azimuth);
+          c1, offsets, axes[a], hit, [&](const Vec3& end) { return area->near(end, radius); },
+          [&](const Vec3& p) { return query.inside(p); });
       placed = azimuth->placed;
       used_axis = a;
       if (placed) {
         ends = azimuth->ends;
-        lambda = azimuth->smallest();
+        lambda = azimuth->smallest() * 0.8;  // divided by 0.8 below, as the single factor's last step
       }
+    }
+    for (std::size_t a = 0; a < axes.size() && !placed && !strip && !by_azimuth; ++a) {
+      lambda = 1.0;
+      for (int attempt = 0; attempt < 20 && !placed; ++attempt, lambda *= 0.8) placed = cast_all(lambda, axes[a], ends);
+      used_axis = a;
     }
     bool rim_cast = false;
     if (placed) {
+      lambda /= 0.8;
       std::size_t n = 0;
       for (int j = 1; j + 1 < lattice.ny; ++j)
         for (int i = 1; i + 1 < lattice.nx; ++i) at(i, j, k_end) = ends[n++];
@@ -292,13 +314,12 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
         for (const Vec3& offset : rim_offsets) {
           // A start the fit puts outside the muscle (a fit wider than a bent end) can miss: its
           // closest surface point instead.
-          const double rim_lambda =
-              std::min(by_azimuth && azimuth && azimuth->placed ? azimuth->factor(offset) : lambda, 0.95);
+          const double rim_lambda = std::min(azimuth && azimuth->placed ? azimuth->factor(offset) : lambda, 0.95);
           const Vec3 start = c1 + rim_lambda * offset;
-          Vec3 end;
-          if (!hit(start, axes[used_axis], end)) end = query.closest_point(start).position;
-          if (!end.allFinite()) break;
-          rim_hits.push_back(end);
+          Vec3 hit;
+          if (!query.first_hit(start, axes[used_axis], reach, hit)) hit = query.closest_point(start).position;
+          if (!hit.allFinite()) break;
+          rim_hits.push_back(hit);
         }
         if (rim_hits.size() == rim.size()) {
           for (std::size_t r = 0; r < rim.size(); ++r) at(rim[r][0], rim[r][1], k_end) = rim_hits[r];
