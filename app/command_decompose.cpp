@@ -305,6 +305,10 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();
+  cmd->add_option("--bend-step", o.placement.bend_step_deg,
+                  "With --band-by-length: largest turn (degrees) of the muscle's centre line between two rings of "
+                  "fibre points; the inner rings close up where it turns faster (0: rings by length alone)")
+      ->capture_default_str();
   cmd->add_option("--meridian-rings", o.placement.meridian_rings,
                   "With --band-by-length: each ring point at the same share of its own meridian's length (true) or "
                   "each ring along one level of the sphere map (false)")

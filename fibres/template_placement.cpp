@@ -11,6 +11,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
 #include <unordered_map>
 
 namespace fascicle {
@@ -255,6 +256,8 @@ void PlacementOptions::validate() const {
     throw OptionError("min_band: must be in (0, 3), got " + std::to_string(min_band));
   if (!(landmark_centre_keep > 0.0 && landmark_centre_keep <= 1.0))
     throw OptionError("landmark_centre_keep: must be in (0, 1], got " + std::to_string(landmark_centre_keep));
+  if (!(bend_step_deg >= 0.0 && bend_step_deg <= 180.0))
+    throw OptionError("bend_step_deg: must be in [0, 180], got " + std::to_string(bend_step_deg));
   if (!(corner_twist_deg >= -180.0 && corner_twist_deg <= 180.0))
     throw OptionError("corner_twist_deg: must be in [-180, 180], got " + std::to_string(corner_twist_deg));
 }
@@ -270,6 +273,8 @@ nlohmann::json PlacementReport::to_json() const {
           {"origin_radius_deg", {origin_radius_min_deg, origin_radius_max_deg}},
           {"insertion_radius_deg", {insertion_radius_min_deg, insertion_radius_max_deg}},
           {"face_scale", {origin_face_scale, insertion_face_scale}},
+          {"centre_turn_deg", centre_turn_deg},
+          {"bend_share", bend_share},
           {"located", located},
           {"seconds", seconds}};
 }
@@ -475,6 +480,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     for (int b = 0; b < kLevels; ++b)
       if (level_area[static_cast<std::size_t>(b)] > 0.0)
         level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
+    std::vector<double> level_mass(kLevels, 0.0);
     for (std::size_t f = 0; f < n_faces; ++f) {
       const double ro = so * face_ro[f], ri = si * face_ri[f];
       const double u = (face_theta[f] - ro) / (kPi - ri - ro);
@@ -484,8 +490,68 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         a = r > 0.0 ? a / r : 0.0;
       }
       muscle_band.add(u, a);
+      if (u >= 0.0 && u <= 1.0 && a > 0.0)
+        level_mass[static_cast<std::size_t>(std::min(kLevels - 1, static_cast<int>(u * kLevels)))] += a;
     }
     muscle_band.finish();
+
+    // Rings closer where the muscle turns: a fibre of straight segments between rings cuts the
+    // inner side of a bend and turns at its joints by the turn between two rings. The centre line
+    // (the level centres, which jitter by a good part of a level's step because a level of the
+    // sphere map is not a plane cross-section, smoothed by a Gaussian of two levels) may turn by
+    // at most bend_step between two rings: each level gets at least the measure its turn needs at
+    // that rate, M turn / ((nz - 1) bend_step), M the band's measure after the additions (a fixed
+    // point; relaxed where the muscle turns more than nz - 1 steps allow). Only the rings between
+    // the first and the last lateral ring move: those two stay, so the faces' depth rule and the
+    // casts of the ends see the rings they see without it.
+    std::optional<Cumulative> bend_band;
+    if (options.band_by_length && options.bend_step_deg > 0.0) {
+      std::vector<int> filled;
+      for (int b = 0; b < kLevels; ++b)
+        if (level_area[static_cast<std::size_t>(b)] > 0.0) filled.push_back(b);
+      constexpr double kSigma = 2.0;
+      std::vector<Vec3> line(filled.size(), Vec3::Zero());
+      for (std::size_t j = 0; j < filled.size(); ++j) {
+        double weight = 0.0;
+        for (std::size_t i = 0; i < filled.size(); ++i) {
+          const double d = (filled[i] - filled[j]) / kSigma;
+          const double w = std::exp(-0.5 * d * d);
+          line[j] += w * level_centre[static_cast<std::size_t>(filled[i])];
+          weight += w;
+        }
+        line[j] /= weight;
+      }
+      std::vector<double> turn(kLevels, 0.0);
+      for (std::size_t j = 1; j + 1 < filled.size(); ++j) {
+        const Vec3 a = line[j] - line[j - 1], c = line[j + 1] - line[j];
+        if (a.norm() > 0.0 && c.norm() > 0.0)
+          turn[static_cast<std::size_t>(filled[j])] = std::atan2(a.cross(c).norm(), a.dot(c));
+      }
+      const double all_turn = std::accumulate(turn.begin(), turn.end(), 0.0);
+      const double steps = static_cast<double>(std::max(1, lattice.nz - 1));
+      const double rate =
+          std::min(1.0 / (steps * options.bend_step_deg * kPi / 180.0), 0.9 / std::max(all_turn, 1e-12));
+      double total = std::accumulate(level_mass.begin(), level_mass.end(), 0.0);
+      const double length_mass = total;
+      for (int round = 0; round < 100; ++round) {
+        double next = 0.0;
+        for (int b = 0; b < kLevels; ++b)
+          next += std::max(level_mass[static_cast<std::size_t>(b)], rate * turn[static_cast<std::size_t>(b)] * total);
+        const bool settled = next - total <= 1e-9 * next;
+        total = next;
+        if (settled) break;
+      }
+      bend_band.emplace(muscle_band);
+      constexpr int kPerLevel = kBandBins / kLevels;
+      for (int b = 0; b < kLevels; ++b) {
+        const double extra = rate * turn[static_cast<std::size_t>(b)] * total - level_mass[static_cast<std::size_t>(b)];
+        if (!(extra > 0.0)) continue;
+        for (int j = 0; j < kPerLevel; ++j) bend_band->add((b * kPerLevel + j + 0.5) / kBandBins, extra / kPerLevel);
+      }
+      bend_band->finish();
+      out.report.centre_turn_deg = all_turn * 180.0 / kPi;
+      out.report.bend_share = total > 0.0 ? (total - length_mass) / total : 0.0;
+    }
 
     // Rings by meridian length: along each meridian (muscle azimuth phi in the pole frame, u from
     // the origin region to the insertion region) the lateral rings go to even shares of the
@@ -684,6 +750,30 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     surface_points.clear();
     for (int q = 0; q < n; ++q)
       if (lattice.system.fixed[static_cast<std::size_t>(q)]) surface_points.push_back(q);
+    // Band level of a lateral point at template share `share`: with bend_band, the shares between
+    // the first and the last lateral ring (s_first, s_last) go through it, the rest unchanged.
+    double s_first = 1.0, s_last = 0.0;
+    if (bend_band && lattice.nz >= 4) {
+      s_first = 0.0;
+      s_last = 1.0;
+      for (int q : surface_points) {
+        const int k = q / (lattice.nx * lattice.ny);
+        if (k != 1 && k != lattice.nz - 2) continue;
+        const Vec3 tq = template_pole_vector(springs::lattice_coordinates(lattice, q));
+        const double phi_t = (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
+        const double edge = face_edge(phi_t);
+        const double sh = template_band.share(std::clamp((polar_angle(tq) - edge) / (kPi - 2.0 * edge), 0.0, 1.0));
+        if (k == 1) s_first = std::max(s_first, sh);
+        else s_last = std::min(s_last, sh);
+      }
+    }
+    const bool bend = bend_band && s_first < s_last;
+    const double c_first = bend ? bend_band->share(muscle_band.inverse(s_first)) : 0.0;
+    const double c_last = bend ? bend_band->share(muscle_band.inverse(s_last)) : 1.0;
+    const auto band_level = [&](double share) {
+      if (!bend || share <= s_first || share >= s_last) return muscle_band.inverse(share);
+      return bend_band->inverse(c_first + (share - s_first) / (s_last - s_first) * (c_last - c_first));
+    };
     std::vector<Vec3> directions(surface_points.size());
     for_each_index(surface_points.size(), [&](std::size_t i) {
       const int q = surface_points[i];
@@ -705,7 +795,8 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       } else {
         const double ut = std::clamp((theta_t - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
         const double share = template_band.share(ut);
-        double um = muscle_band.inverse(share);
+        // Meridian rings keep the levels by length for their azimuths, as their own spacing.
+        double um = meridian_u.empty() ? band_level(share) : muscle_band.inverse(share);
         phi = muscle_azimuth(phi_t, um);
         if (!meridian_u.empty()) um = meridian_level(phi, share);
         const double ro = so * origin_radius(phi), ri = si * insertion_radius(phi);

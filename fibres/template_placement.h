@@ -67,6 +67,10 @@ struct PlacementOptions {
   /// Lateral rings at even steps of length along the muscle (true) or of surface area (false)
   /// (default true: keeps the layers flat where the muscle narrows to a tendon).
   bool band_by_length = true;
+  /// With band_by_length: largest turn (degrees) of the muscle's centre line between two rings;
+  /// the rings between the first and the last close up where it turns faster, [0, 180]
+  /// (default 0: off, rings by length alone; docs/decompose.md, step 4, measures 5, 10 and 20).
+  double bend_step_deg = 0.0;
   /// With band_by_length: each ring point at the same share of its own meridian's length (true) or
   /// one sphere-map level per ring (false) (default false; the second try for folds and uneven layers, fibres/try_policy.h).
   bool meridian_rings = false;
@@ -95,6 +99,8 @@ struct PlacementReport {
   double origin_radius_min_deg = 0.0, origin_radius_max_deg = 0.0;        ///< R_o(phi) range
   double insertion_radius_min_deg = 0.0, insertion_radius_max_deg = 0.0;  ///< R_i(phi) range
   double origin_face_scale = 1.0, insertion_face_scale = 1.0;             ///< share of R(phi) the faces use
+  double centre_turn_deg = 0.0;  ///< with bend_step_deg: the smoothed centre line's whole turn
+  double bend_share = 0.0;       ///< with bend_step_deg: share of the band measure its rule adds
   long located = 0;  ///< template surface points located on the muscle
   double seconds = 0.0;
   nlohmann::json to_json() const;

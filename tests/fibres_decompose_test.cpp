@@ -6,6 +6,7 @@
 #include "fibres/template_placement.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
+#include "geometry/mesh_stats.h"
 #include "geometry/primitives.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
@@ -180,6 +181,85 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
       *std::max_element(meridian.span.begin() + 1, meridian.span.begin() + static_cast<long>(last));
   CHECK(meridian_largest <= 0.5 * average);
   CHECK(meridian_largest < level_largest);
+}
+
+TEST_CASE("rings close up where the muscle turns, the first and last ring stay", "[fibres][placement]") {
+  // An elbow: a capsule 30 long, radius 1.5, straight for its first and last third and turned
+  // through 90 degrees along its middle third. With rings by length alone the middle third gets
+  // about a third of the ring steps; with bend_step 10 degrees its turn asks for more, so the
+  // rings' centre line turns by less at its sharpest inner ring, while the faces and the first
+  // and last lateral ring stay exactly where they were.
+  TriangleMesh mesh = make_capsule(30.0, 1.5, 24);
+  const double a = 10.0, b = 20.0, radius = (b - a) / (0.5 * 3.14159265358979323846);
+  for (Vec3& p : mesh.positions) {
+    // make_capsule lies along x from -15 to 15: along z from 0 to 30, then the bend in xz.
+    const double z = p.x() + 15.0, x = p.y(), y = p.z();
+    if (z <= a) {
+      p = Vec3(x, y, z);
+    } else if (z <= b) {
+      const double phi = (z - a) / radius;
+      p = Vec3(radius - (radius - x) * std::cos(phi), y, a + (radius - x) * std::sin(phi));
+    } else {
+      p = Vec3(radius + (z - b), y, a + radius - x);
+    }
+  }
+  REQUIRE(signed_volume(mesh) > 0.0);
+  const SphereMap map = map_to_sphere(mesh);
+  REQUIRE(map.report.quality.bijective());
+  const SphereLocator locator(map.positions, mesh.triangles);
+  const Attachments areas = automatic_attachments(mesh);
+  springs::LatticeOptions lo;
+  lo.nr = 6;
+  lo.ns = 6;
+  lo.resolution = 15;
+  const springs::Lattice lattice = springs::build_lattice(lo);
+  const int plane = lattice.nx * lattice.ny;
+  const auto ring_centres = [&](const Placement& placement) {
+    std::vector<Vec3> centre(static_cast<std::size_t>(lattice.nz), Vec3::Zero());
+    std::vector<int> count(static_cast<std::size_t>(lattice.nz), 0);
+    for (int q = 0; q < lattice.point_count(); ++q) {
+      if (!lattice.system.fixed[static_cast<std::size_t>(q)]) continue;
+      centre[static_cast<std::size_t>(q / plane)] += placement.points[static_cast<std::size_t>(q)].position;
+      ++count[static_cast<std::size_t>(q / plane)];
+    }
+    for (std::size_t k = 0; k < centre.size(); ++k) centre[k] /= count[k];
+    return centre;
+  };
+  // The sharpest turn at a ring whose two neighbours move too (the first and last lateral ring
+  // stay, and so do the faces next to them).
+  const auto sharpest = [](const std::vector<Vec3>& c) {
+    double most = 0.0;
+    for (std::size_t k = 3; k + 3 < c.size(); ++k) {
+      const Vec3 u = c[k] - c[k - 1], v = c[k + 1] - c[k];
+      most = std::max(most, std::atan2(u.cross(v).norm(), u.dot(v)) * 180.0 / 3.14159265358979323846);
+    }
+    return most;
+  };
+  PlacementOptions options;
+  options.bend_step_deg = 0.0;
+  const Placement plain = place_template(mesh, map.positions, locator, areas, lattice, options);
+  options.bend_step_deg = 10.0;
+  const Placement bent = place_template(mesh, map.positions, locator, areas, lattice, options);
+  CHECK(plain.report.bend_share == 0.0);
+  CHECK(bent.report.bend_share > 0.05);
+  CHECK(bent.report.centre_turn_deg > 80.0);
+  const std::vector<Vec3> before = ring_centres(plain), after = ring_centres(bent);
+  CAPTURE(sharpest(before), sharpest(after));
+  CHECK(sharpest(after) < 0.85 * sharpest(before));
+  for (int q = 0; q < lattice.point_count(); ++q) {
+    const int k = q / plane;
+    if (lattice.system.fixed[static_cast<std::size_t>(q)] && (k <= 1 || k >= lattice.nz - 2))
+      CHECK(bent.points[static_cast<std::size_t>(q)].position == plain.points[static_cast<std::size_t>(q)].position);
+  }
+  // Rings inside the bend (the middle third, between its two straight ends): more with it.
+  const auto in_bend = [&](const std::vector<Vec3>& c) {
+    int n = 0;
+    for (const Vec3& p : c) n += p.z() > a + 0.5 && p.x() < radius - 0.5 ? 1 : 0;
+    return n;
+  };
+  CHECK(in_bend(after) > in_bend(before));
+  options.bend_step_deg = -1.0;
+  CHECK_THROWS_AS(place_template(mesh, map.positions, locator, areas, lattice, options), OptionError);
 }
 
 TEST_CASE("a result with a long layer is decomposed once more with meridian rings", "[fibres][decompose]") {
