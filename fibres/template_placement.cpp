@@ -197,6 +197,10 @@ class Cumulative {
     for (std::size_t b = 0; b < mass_.size(); ++b) cdf_[b + 1] = cdf_[b] + mass_[b] + floor;
     for (double& c : cdf_) c /= cdf_.back();
   }
+  /// Measure added to bins [first, last).
+  double mass(int first, int last) const {
+    return std::accumulate(mass_.begin() + first, mass_.begin() + last, 0.0);
+  }
   double share(double u) const {
     const double x = std::clamp(u, 0.0, 1.0) * static_cast<double>(mass_.size());
     const auto b = std::min(mass_.size() - 1, static_cast<std::size_t>(x));
@@ -480,7 +484,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     for (int b = 0; b < kLevels; ++b)
       if (level_area[static_cast<std::size_t>(b)] > 0.0)
         level_radius[static_cast<std::size_t>(b)] /= level_area[static_cast<std::size_t>(b)];
-    std::vector<double> level_mass(kLevels, 0.0);
     for (std::size_t f = 0; f < n_faces; ++f) {
       const double ro = so * face_ro[f], ri = si * face_ri[f];
       const double u = (face_theta[f] - ro) / (kPi - ri - ro);
@@ -490,8 +493,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         a = r > 0.0 ? a / r : 0.0;
       }
       muscle_band.add(u, a);
-      if (u >= 0.0 && u <= 1.0 && a > 0.0)
-        level_mass[static_cast<std::size_t>(std::min(kLevels - 1, static_cast<int>(u * kLevels)))] += a;
     }
     muscle_band.finish();
 
@@ -527,6 +528,12 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         if (a.norm() > 0.0 && c.norm() > 0.0)
           turn[static_cast<std::size_t>(filled[j])] = std::atan2(a.cross(c).norm(), a.dot(c));
       }
+      // A level's measure: its kBandBins / kLevels bins of the band (both counts powers of two,
+      // so a level's bins are exactly the faces whose u falls in it).
+      constexpr int kPerLevel = kBandBins / kLevels;
+      std::vector<double> level_mass(kLevels);
+      for (int b = 0; b < kLevels; ++b)
+        level_mass[static_cast<std::size_t>(b)] = muscle_band.mass(b * kPerLevel, (b + 1) * kPerLevel);
       const double all_turn = std::accumulate(turn.begin(), turn.end(), 0.0);
       const double steps = static_cast<double>(std::max(1, lattice.nz - 1));
       const double rate =
@@ -542,7 +549,6 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         if (settled) break;
       }
       bend_band.emplace(muscle_band);
-      constexpr int kPerLevel = kBandBins / kLevels;
       for (int b = 0; b < kLevels; ++b) {
         const double extra = rate * turn[static_cast<std::size_t>(b)] * total - level_mass[static_cast<std::size_t>(b)];
         if (!(extra > 0.0)) continue;
@@ -750,6 +756,15 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
     surface_points.clear();
     for (int q = 0; q < n; ++q)
       if (lattice.system.fixed[static_cast<std::size_t>(q)]) surface_points.push_back(q);
+    // Template band level in [0, 1] of a lateral point with template pole vector tq: its polar
+    // angle between the two faces' edges at its azimuth.
+    const auto template_azimuth = [](const Vec3& tq) {
+      return (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
+    };
+    const auto lateral_level = [&](const Vec3& tq) {
+      const double edge = face_edge(template_azimuth(tq));
+      return std::clamp((polar_angle(tq) - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
+    };
     // Band level of a lateral point at template share `share`: with bend_band, the shares between
     // the first and the last lateral ring (s_first, s_last) go through it, the rest unchanged.
     double s_first = 1.0, s_last = 0.0;
@@ -759,10 +774,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       for (int q : surface_points) {
         const int k = q / (lattice.nx * lattice.ny);
         if (k != 1 && k != lattice.nz - 2) continue;
-        const Vec3 tq = template_pole_vector(springs::lattice_coordinates(lattice, q));
-        const double phi_t = (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
-        const double edge = face_edge(phi_t);
-        const double sh = template_band.share(std::clamp((polar_angle(tq) - edge) / (kPi - 2.0 * edge), 0.0, 1.0));
+        const double sh = template_band.share(lateral_level(template_pole_vector(springs::lattice_coordinates(lattice, q))));
         if (k == 1) s_first = std::max(s_first, sh);
         else s_last = std::min(s_last, sh);
       }
@@ -780,7 +792,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
       const Vec3 c = springs::lattice_coordinates(lattice, q);
       const Vec3 tq = template_pole_vector(c);
       const double theta_t = polar_angle(tq);
-      const double phi_t = (std::abs(tq.x()) + std::abs(tq.y()) == 0.0) ? 0.0 : azimuth(tq);
+      const double phi_t = template_azimuth(tq);
       const double edge = face_edge(phi_t);
       const int k = q / (lattice.nx * lattice.ny);
       double theta, phi;
@@ -793,8 +805,7 @@ Placement place_template(const TriangleMesh& muscle, const std::vector<Vec3>& sp
         const double rho = std::min(1.0, std::tan(kPi - theta_t) / std::tan(edge));
         theta = kPi - rho * si * insertion_radius(phi);
       } else {
-        const double ut = std::clamp((theta_t - edge) / (kPi - 2.0 * edge), 0.0, 1.0);
-        const double share = template_band.share(ut);
+        const double share = template_band.share(lateral_level(tq));
         // Meridian rings keep the levels by length for their azimuths, as their own spacing.
         double um = meridian_u.empty() ? band_level(share) : muscle_band.inverse(share);
         phi = muscle_azimuth(phi_t, um);

@@ -40,20 +40,26 @@ TriangleMesh capsule() {
   return mesh;
 }
 
-// The capsule, its sphere map and locator, its automatic areas and an 8 x 8 x 12 lattice: what
-// the placement tests place.
-struct CapsulePlacement {
-  TriangleMesh mesh = capsule();
-  SphereMap map = map_to_sphere(mesh);
-  SphereLocator locator{map.positions, mesh.triangles};
-  Attachments areas = automatic_attachments(mesh);
-  springs::Lattice lattice = springs::build_lattice([] {
-    springs::LatticeOptions lo;
-    lo.nr = 8;
-    lo.ns = 8;
-    lo.resolution = 12;
-    return lo;
-  }());
+// A muscle, its sphere map and locator, its automatic areas and an nr x ns x resolution lattice:
+// what the placement tests place (by default the capsule and 8 x 8 x 12).
+struct PlacementSetup {
+  TriangleMesh mesh;
+  SphereMap map;
+  SphereLocator locator;
+  Attachments areas;
+  springs::Lattice lattice;
+  explicit PlacementSetup(TriangleMesh m = capsule(), int nr = 8, int ns = 8, int resolution = 12)
+      : mesh(std::move(m)),
+        map(map_to_sphere(mesh)),
+        locator(map.positions, mesh.triangles),
+        areas(automatic_attachments(mesh)),
+        lattice(springs::build_lattice([&] {
+          springs::LatticeOptions lo;
+          lo.nr = nr;
+          lo.ns = ns;
+          lo.resolution = resolution;
+          return lo;
+        }())) {}
 };
 
 }  // namespace
@@ -79,7 +85,7 @@ TEST_CASE("a pole frame sends origin and insertion to the poles and back", "[fib
 }
 
 TEST_CASE("template surface points land on the muscle, faces in their areas", "[fibres][placement]") {
-  const CapsulePlacement setup;
+  const PlacementSetup setup;
   REQUIRE(setup.map.report.quality.bijective());
   const TriangleMesh& mesh = setup.mesh;
   const SphereMap& map = setup.map;
@@ -133,7 +139,7 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
   // sits at its own meridian's share of the length, so those rings lie flatter: in order from the
   // origin to the insertion, each spanning at most half a step and less than the level rings'
   // largest span, steps within 25 % of their mean away from the caps.
-  const CapsulePlacement setup;
+  const PlacementSetup setup;
   REQUIRE(setup.map.report.quality.bijective());
   const springs::Lattice& lattice = setup.lattice;
   const int plane = lattice.nx * lattice.ny;
@@ -204,15 +210,12 @@ TEST_CASE("rings close up where the muscle turns, the first and last ring stay",
     }
   }
   REQUIRE(signed_volume(mesh) > 0.0);
-  const SphereMap map = map_to_sphere(mesh);
-  REQUIRE(map.report.quality.bijective());
-  const SphereLocator locator(map.positions, mesh.triangles);
-  const Attachments areas = automatic_attachments(mesh);
-  springs::LatticeOptions lo;
-  lo.nr = 6;
-  lo.ns = 6;
-  lo.resolution = 15;
-  const springs::Lattice lattice = springs::build_lattice(lo);
+  const PlacementSetup setup(mesh, 6, 6, 15);
+  REQUIRE(setup.map.report.quality.bijective());
+  const SphereMap& map = setup.map;
+  const SphereLocator& locator = setup.locator;
+  const Attachments& areas = setup.areas;
+  const springs::Lattice& lattice = setup.lattice;
   const int plane = lattice.nx * lattice.ny;
   const auto ring_centres = [&](const Placement& placement) {
     std::vector<Vec3> centre(static_cast<std::size_t>(lattice.nz), Vec3::Zero());
@@ -526,10 +529,12 @@ TEST_CASE("a landmark strip down the side is centred towards the muscle's end", 
   // insertion is a disk on the bottom cap. Centred in the middle of its region (the automatic
   // areas' rule, landmark_centre_keep = 1) the origin face sits halfway down the strip; by
   // default it moves to the far end of the strip, near the top.
-  const TriangleMesh mesh = capsule();
-  const SphereMap map = map_to_sphere(mesh);
-  REQUIRE(map.report.quality.bijective());
-  const SphereLocator locator(map.positions, mesh.triangles);
+  const PlacementSetup setup;
+  REQUIRE(setup.map.report.quality.bijective());
+  const TriangleMesh& mesh = setup.mesh;
+  const SphereMap& map = setup.map;
+  const SphereLocator& locator = setup.locator;
+  const springs::Lattice& lattice = setup.lattice;
   std::vector<Vec3> origin, insertion;
   for (double z = 0.0; z < 3.5; z += 0.1) origin.emplace_back(1.5, 0.0, z);
   for (double a = 0.0; a <= 90.0; a += 4.0) {
@@ -539,11 +544,6 @@ TEST_CASE("a landmark strip down the side is centred towards the muscle's end", 
   for (double x = -0.4; x <= 0.41; x += 0.1)
     for (double y = -0.4; y <= 0.41; y += 0.1) insertion.emplace_back(x, y, -5.0);
   const Attachments areas = landmark_attachments(mesh, origin, "side.xyz", insertion, "bottom.xyz");
-  springs::LatticeOptions lo;
-  lo.nr = 8;
-  lo.ns = 8;
-  lo.resolution = 12;
-  const springs::Lattice lattice = springs::build_lattice(lo);
   PlacementOptions middle;
   middle.landmark_centre_keep = 1.0;
   const PlacementOptions towards_end;
@@ -597,15 +597,12 @@ TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[
   // the map compresses the edges); by even shares of the perimeter they do not.
   TriangleMesh mesh = capsule();
   for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
-  const SphereMap map = map_to_sphere(mesh);
-  REQUIRE(map.report.quality.bijective());
-  const SphereLocator locator(map.positions, mesh.triangles);
-  const Attachments areas = automatic_attachments(mesh);
-  springs::LatticeOptions lo;
-  lo.nr = 12;
-  lo.ns = 12;
-  lo.resolution = 15;
-  const springs::Lattice lattice = springs::build_lattice(lo);
+  const PlacementSetup setup(mesh, 12, 12, 15);
+  REQUIRE(setup.map.report.quality.bijective());
+  const SphereMap& map = setup.map;
+  const SphereLocator& locator = setup.locator;
+  const Attachments& areas = setup.areas;
+  const springs::Lattice& lattice = setup.lattice;
   PlacementOptions even;
   even.even_perimeter = true;
   PlacementOptions by_azimuth;
