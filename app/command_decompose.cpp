@@ -302,6 +302,9 @@ void add_decompose_command(CLI::App& app) {
                   "Steps smoothing each fibre's joints that turn by more than 30 degrees, under the check's guards "
                   "(0: none)")
       ->capture_default_str();
+  cmd->add_option("--smooth-above", o.smoothing.max_turning_deg,
+                  "Only joints turning by more than this many degrees are smoothed")
+      ->capture_default_str();
   cmd->add_option("--band-by-length", o.placement.band_by_length,
                   "Lattice rings at even steps of length (true) or of surface area (false) along the muscle")
       ->capture_default_str();

@@ -746,13 +746,19 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
 
   // Steps 8-10 on a settled, untangled lattice: the ends aligned, the segments that leave moved
   // back inside, the sharp joints smoothed; their reports into `into`. Returns the fallbacks of
-  // the check below, in order: the positions without the segment moves, smoothed, then without
-  // the moves or the smoothing (each where it differs).
+  // the check below, in order: the moved positions smoothed only at the whole check's turning
+  // limit, then the positions without the segment moves smoothed (at the goal, then at the
+  // limit), then without the moves or the smoothing (each where it differs). Smoothing every
+  // joint over the goal (30 degrees) straightens the muscle's own bends and can draw the fibres
+  // off a bend's outer side (coverage); only the joints over the limit cost less of it.
   struct Fallback {
     std::vector<Vec3> positions;
     bool unmoved = false, unsmoothed = false, unheld = false;
     nlohmann::json smoothing = nullptr;  // the smoothing report of these positions, when smoothed
   };
+  FibreSmoothingOptions at_limit = options.smoothing;
+  at_limit.max_turning_deg = std::max(at_limit.max_turning_deg, CheckOptions{}.max_turning_angle_deg);
+  const bool limit_differs = at_limit.max_turning_deg != options.smoothing.max_turning_deg;
   auto finish_lines = [&](springs::SpringSystem& lines, nlohmann::json& into) {
     into["end_alignment"] =
         options.align_ends ? align_ends(lattice, lines, query, areas, end_radius).to_json() : nlohmann::json(nullptr);
@@ -769,16 +775,27 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     // A crossing template smooths the fibres it draws instead.
     const bool smooth = options.smoothing.steps > 0 && !crossing_kind;
     if (smooth) {
+      // The positions `from` smoothed only at the limit, as a fallback (where that differs).
+      const auto limit_fallback = [&](const std::vector<Vec3>& from, bool unmoved) {
+        if (!limit_differs) return;
+        springs::SpringSystem limited = lines;
+        limited.positions = from;
+        const FibreSmoothingReport r = smooth_fibres(lattice, limited, query, end_tolerance, at_limit);
+        if (r.moved > 0) fallbacks.push_back({std::move(limited.positions), unmoved, false, false, r.to_json()});
+      };
+      const std::vector<Vec3> contained = lines.positions;
       const FibreSmoothingReport smoothing = smooth_fibres(lattice, lines, query, end_tolerance, options.smoothing);
       smoothed = smoothing.moved;
       into["smoothing"] = smoothing.to_json();
       into["smoothing"]["reverted"] = false;
+      if (smoothed > 0) limit_fallback(contained, false);
       if (moved > 0) {
         springs::SpringSystem unmoved = lines;
         unmoved.positions = aligned;
         const nlohmann::json report_unmoved =
             smooth_fibres(lattice, unmoved, query, end_tolerance, options.smoothing).to_json();
         fallbacks.push_back({std::move(unmoved.positions), true, false, false, report_unmoved});
+        limit_fallback(aligned, true);
       }
     }
     if (moved > 0 || smoothed > 0) fallbacks.push_back({aligned, moved > 0, smoothed > 0});
@@ -927,6 +944,9 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
         CheckReport quality = check_fibres(fibres, muscle, query, checked_against, options.check);
         fallbacks_report["tried"].push_back({{"unmoved", fallback.unmoved},
                                              {"unsmoothed", fallback.unsmoothed},
+                                             {"smoothed_above_deg", fallback.smoothing.is_null()
+                                                                        ? nlohmann::json(nullptr)
+                                                                        : fallback.smoothing["above_deg"]},
                                              {"unheld", fallback.unheld},
                                              {"failed", quality.failed},
                                              {"coverage_p95", quality.coverage.p95},

@@ -52,6 +52,7 @@ nlohmann::json FibreSmoothingReport::to_json() const {
           {"refused_outside", refused_outside},
           {"refused_segments", refused_segments},
           {"refused_cells", refused_cells},
+          {"above_deg", above_deg},
           {"max_turning_before_deg", max_turning_before_deg},
           {"max_turning_after_deg", max_turning_after_deg},
           {"crossing_after", crossing_after},
@@ -64,6 +65,7 @@ FibreSmoothingReport smooth_fibres(const springs::Lattice& lattice, springs::Spr
   options.validate();
   const auto start = std::chrono::steady_clock::now();
   FibreSmoothingReport report;
+  report.above_deg = options.max_turning_deg;
   std::vector<Vec3>& x = system.positions;
   auto at = [&](int i, int j, int k) -> Vec3& { return x[static_cast<std::size_t>(lattice.index(i, j, k))]; };
   const int segments = lattice.nz - 1;

@@ -42,6 +42,7 @@ struct FibreSmoothingReport {
   long refused_outside = 0;   ///< moves not made: the point would leave the muscle
   long refused_segments = 0;  ///< moves not made: a segment of its line would start to leave, or leave deeper
   long refused_cells = 0;     ///< moves not made: a cell round the point would fold
+  double above_deg = 0.0;     ///< joints turning by more than this were smoothed (the options' max_turning_deg)
   double max_turning_before_deg = 0.0, max_turning_after_deg = 0.0;  ///< largest joint angle of the fibres
   /// Fibre segments leaving the muscle on return (the rule of fibres/contain_segments.h; the moves
   /// start none, and can end some).
