@@ -60,6 +60,10 @@ struct PlacementSetup {
           lo.resolution = resolution;
           return lo;
         }())) {}
+  /// The template placed with `options`, on these areas or on `other` areas.
+  Placement place(const PlacementOptions& options = {}, const Attachments* other = nullptr) const {
+    return place_template(mesh, map.positions, locator, other ? *other : areas, lattice, options);
+  }
 };
 
 }  // namespace
@@ -88,11 +92,9 @@ TEST_CASE("template surface points land on the muscle, faces in their areas", "[
   const PlacementSetup setup;
   REQUIRE(setup.map.report.quality.bijective());
   const TriangleMesh& mesh = setup.mesh;
-  const SphereMap& map = setup.map;
-  const SphereLocator& locator = setup.locator;
   const Attachments& areas = setup.areas;
   const springs::Lattice& lattice = setup.lattice;
-  const Placement placement = place_template(mesh, map.positions, locator, areas, lattice);
+  const Placement placement = setup.place();
   const double length = muscle_length(mesh);
   CHECK(length == Approx(10.0).epsilon(0.01));
   double longest_edge = 0.0;
@@ -149,8 +151,7 @@ TEST_CASE("rings placed by meridian follow the muscle evenly", "[fibres][placeme
   const auto rings = [&](bool meridian) {
     PlacementOptions options;
     options.meridian_rings = meridian;
-    const Placement placement =
-        place_template(setup.mesh, setup.map.positions, setup.locator, setup.areas, lattice, options);
+    const Placement placement = setup.place(options);
     CHECK(placement.report.located ==
           static_cast<long>(std::count(lattice.system.fixed.begin(), lattice.system.fixed.end(), 1)));
     const auto nz = static_cast<std::size_t>(lattice.nz);
@@ -212,9 +213,6 @@ TEST_CASE("rings close up where the muscle turns, the first and last ring stay",
   REQUIRE(signed_volume(mesh) > 0.0);
   const PlacementSetup setup(mesh, 6, 6, 15);
   REQUIRE(setup.map.report.quality.bijective());
-  const SphereMap& map = setup.map;
-  const SphereLocator& locator = setup.locator;
-  const Attachments& areas = setup.areas;
   const springs::Lattice& lattice = setup.lattice;
   const int plane = lattice.nx * lattice.ny;
   const auto ring_centres = [&](const Placement& placement) {
@@ -240,9 +238,9 @@ TEST_CASE("rings close up where the muscle turns, the first and last ring stay",
   };
   PlacementOptions options;
   options.bend_step_deg = 0.0;
-  const Placement plain = place_template(mesh, map.positions, locator, areas, lattice, options);
+  const Placement plain = setup.place(options);
   options.bend_step_deg = 10.0;
-  const Placement bent = place_template(mesh, map.positions, locator, areas, lattice, options);
+  const Placement bent = setup.place(options);
   CHECK(plain.report.bend_share == 0.0);
   CHECK(bent.report.bend_share > 0.05);
   CHECK(bent.report.centre_turn_deg > 80.0);
@@ -262,7 +260,7 @@ TEST_CASE("rings close up where the muscle turns, the first and last ring stay",
   };
   CHECK(in_bend(after) > in_bend(before));
   options.bend_step_deg = -1.0;
-  CHECK_THROWS_AS(place_template(mesh, map.positions, locator, areas, lattice, options), OptionError);
+  CHECK_THROWS_AS(setup.place(options), OptionError);
 }
 
 TEST_CASE("a result with a long layer is decomposed once more with meridian rings", "[fibres][decompose]") {
@@ -532,8 +530,6 @@ TEST_CASE("a landmark strip down the side is centred towards the muscle's end", 
   const PlacementSetup setup;
   REQUIRE(setup.map.report.quality.bijective());
   const TriangleMesh& mesh = setup.mesh;
-  const SphereMap& map = setup.map;
-  const SphereLocator& locator = setup.locator;
   const springs::Lattice& lattice = setup.lattice;
   std::vector<Vec3> origin, insertion;
   for (double z = 0.0; z < 3.5; z += 0.1) origin.emplace_back(1.5, 0.0, z);
@@ -548,8 +544,8 @@ TEST_CASE("a landmark strip down the side is centred towards the muscle's end", 
   middle.landmark_centre_keep = 1.0;
   const PlacementOptions towards_end;
   REQUIRE(towards_end.landmark_centre_keep < 1.0);
-  const Placement before = place_template(mesh, map.positions, locator, areas, lattice, middle);
-  const Placement after = place_template(mesh, map.positions, locator, areas, lattice, towards_end);
+  const Placement before = setup.place(middle, &areas);
+  const Placement after = setup.place(towards_end, &areas);
   const auto face_z = [&](const Placement& placement) {
     double z = 0.0;
     int count = 0;
@@ -578,9 +574,8 @@ TEST_CASE("a landmark strip down the side is centred towards the muscle's end", 
   CHECK(nearest(areas.insertion, after.report.insertion_centre) <= radius);
 
   // Automatic areas keep the rule of the deepest vertex: the option changes nothing there.
-  const Attachments automatic = automatic_attachments(mesh);
-  const Placement a = place_template(mesh, map.positions, locator, automatic, lattice, middle);
-  const Placement b = place_template(mesh, map.positions, locator, automatic, lattice, towards_end);
+  const Placement a = setup.place(middle);
+  const Placement b = setup.place(towards_end);
   REQUIRE(a.points.size() == b.points.size());
   for (std::size_t q = 0; q < a.points.size(); ++q) CHECK(a.points[q].position == b.points[q].position);
 
@@ -599,18 +594,15 @@ TEST_CASE("the lattice's rings are spread evenly round a flat cross-section", "[
   for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
   const PlacementSetup setup(mesh, 12, 12, 15);
   REQUIRE(setup.map.report.quality.bijective());
-  const SphereMap& map = setup.map;
-  const SphereLocator& locator = setup.locator;
-  const Attachments& areas = setup.areas;
   const springs::Lattice& lattice = setup.lattice;
   PlacementOptions even;
   even.even_perimeter = true;
   PlacementOptions by_azimuth;
   by_azimuth.even_perimeter = false;
   const double even_ratio =
-      ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, even));
+      ring_spacing_ratio(lattice, setup.place(even));
   const double azimuth_ratio =
-      ring_spacing_ratio(lattice, place_template(mesh, map.positions, locator, areas, lattice, by_azimuth));
+      ring_spacing_ratio(lattice, setup.place(by_azimuth));
   CAPTURE(even_ratio, azimuth_ratio);
   CHECK(even_ratio < 0.7 * azimuth_ratio);
   CHECK(even_ratio < 3.0);
