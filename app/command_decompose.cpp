@@ -370,10 +370,6 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option("--untangle-containment-margin", o.untangle.containment_margin,
                   "Untangling: depth (local spacings) the containment energy pushes a point to")
       ->capture_default_str();
-  cmd->add_option("--untangle-containment-retry", o.untangle.containment_retry,
-                  "Untangling: when the attempts with the surface ring free leave folds, run them again with the "
-                  "containment energy switched and keep the result with fewer folded cells")
-      ->capture_default_str();
   cmd->add_option("--untangle-containment-band", o.untangle.containment_band,
                   "Untangling: points farther inside than this many local spacings are left out of the containment "
                   "energy")

@@ -727,14 +727,6 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     report.free_ring_tried = true;
     const long ring_left = run_from(settled, true, true, options.containment_energy, "free_ring");
     continue_held(ring_left, everywhere, "free_ring_then_held_ends");
-    // containment_retry: the free-ring attempts again with the other containment setting (only
-    // where the first left folds); the fewest folded cells stay, the first on a tie.
-    if (inverted_left > 0 && options.containment_retry) {
-      const bool other = !options.containment_energy;
-      const std::string tag = other ? "_contained" : "_uncontained";
-      const long other_left = run_from(settled, true, true, other, "free_ring" + tag);
-      continue_held(other_left, everywhere && other, "free_ring" + tag + "_then_held_ends");
-    }
   }
   // The segment attempt (with `segments`): from the kept result, ends and ring held, rounds whose
   // pins hold the leaving fibre segments in; kept when it folds no more cells, leaves fewer points

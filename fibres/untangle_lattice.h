@@ -17,9 +17,8 @@
 /// the held ends stall on the same folds; likewise for each continuation below). While cells still stay folded, the last two run again with the surface ring free too
 /// (free_ring: each ring point held on a plane just under the surface, sliding along it; the ring
 /// is freed only after the attempts with it held, since a freed ring changes the coverage of
-/// muscles the held ring already unfolds; in these attempts the containment is also part of the
-/// untangling's energy, containment_energy; when they still leave folds they run once more with
-/// that switched, containment_retry). Containment is part of every attempt: a point moved
+/// muscles the held ring already unfolds; with containment_energy the containment is also part of
+/// the untangling's energy in these attempts). Containment is part of every attempt: a point moved
 /// outside gets a soft pin under the tangent plane at its closest surface point (stronger each
 /// round, sliding_contact); an attempt stops when a round does not fold fewer cells than the
 /// rounds before it (or, when asked, after `contact_stall_rounds` rounds in a row that did not
@@ -92,9 +91,6 @@ struct LatticeUntangleOptions {
   /// Depth the containment energy pushes a point to, local spacings, [0, 1) (default 0.15: above the
   /// error of the signed-distance grid's interpolation, whose cells are a quarter of the spacing).
   double containment_margin = 0.15;
-  /// When the free-ring attempts leave folds, rerun them with containment_energy switched and keep
-  /// the fewest folds, earlier on a tie (default true: muscles the first setting unfolds never pay).
-  bool containment_retry = true;
   /// Points farther inside than this many local spacings are left out of the containment energy
   /// (they cannot reach the surface in one run), > 0 (default 3).
   double containment_band = 3.0;
