@@ -247,13 +247,13 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     std::vector<Vec3> ends;
     std::size_t used_axis = 0;
     nlohmann::json strip_factors;
+    const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
+      return query.first_hit(start, axis, reach, end);
+    };
+    const auto near = [&](const Vec3& end) { return area->near(end, radius); };
     if (strip) {
       std::vector<Vec3> area_points;
       for (const SurfacePoint& p : area->points) area_points.push_back(p.position);
-      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
-        return query.first_hit(start, axis, reach, end);
-      };
-      const auto near = [&](const Vec3& end) { return area->near(end, radius); };
       for (std::size_t a = 0; a < axes.size() && !placed; ++a) {
         const StripCast cast = cast_strip_face(c1, offsets, axes[a], area_points, hit, near);
         placed = cast.placed;
@@ -272,20 +272,15 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
     const auto cast_all = [&](double factor, const Vec3& axis, std::vector<Vec3>& hits) {
       hits.clear();
       for (const Vec3& offset : offsets) {
-        Vec3 hit;
-        if (!query.first_hit(c1 + factor * offset, axis, reach, hit) || !area->near(hit, radius)) return false;
-        hits.push_back(hit);
+        Vec3 end;
+        if (!hit(c1 + factor * offset, axis, end) || !near(end)) return false;
+        hits.push_back(end);
       }
       return true;
     };
     std::optional<AzimuthCast> azimuth;
     for (std::size_t a = 0; a < axes.size() && !placed && !strip && by_azimuth; ++a) {
-      const auto hit = [&](const Vec3& start, const Vec3& axis, Vec3& end) {
-        return query.first_hit(start, axis, reach, end);
-      };
-      azimuth = cast_azimuth_face(
-          c1, offsets, axes[a], hit, [&](const Vec3& end) { return area->near(end, radius); },
-          [&](const Vec3& p) { return query.inside(p); });
+      azimuth = cast_azimuth_face(c1, offsets, axes[a], hit, near, [&](const Vec3& p) { return query.inside(p); });
       placed = azimuth->placed;
       used_axis = a;
       if (placed) {
@@ -316,10 +311,10 @@ nlohmann::json cast_faces(springs::SpringSystem& system, const springs::Lattice&
           // closest surface point instead.
           const double rim_lambda = std::min(azimuth && azimuth->placed ? azimuth->factor(offset) : lambda, 0.95);
           const Vec3 start = c1 + rim_lambda * offset;
-          Vec3 hit;
-          if (!query.first_hit(start, axes[used_axis], reach, hit)) hit = query.closest_point(start).position;
-          if (!hit.allFinite()) break;
-          rim_hits.push_back(hit);
+          Vec3 end;
+          if (!hit(start, axes[used_axis], end)) end = query.closest_point(start).position;
+          if (!end.allFinite()) break;
+          rim_hits.push_back(end);
         }
         if (rim_hits.size() == rim.size()) {
           for (std::size_t r = 0; r < rim.size(); ++r) at(rim[r][0], rim[r][1], k_end) = rim_hits[r];
@@ -751,10 +746,12 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // limit), then without the moves or the smoothing (each where it differs). Smoothing every
   // joint over the goal (30 degrees) straightens the muscle's own bends and can draw the fibres
   // off a bend's outer side (coverage); only the joints over the limit cost less of it.
+  // A smoothed fallback is smoothed only when it is tried: most results pass and try none.
   struct Fallback {
     std::vector<Vec3> positions;
     bool unmoved = false, unsmoothed = false, unheld = false;
-    nlohmann::json smoothing = nullptr;  // the smoothing report of these positions, when smoothed
+    const FibreSmoothingOptions* smooth = nullptr;  // smooth `positions` with these when tried
+    bool only_if_moved = false;                     // and leave it out when that moves nothing
   };
   FibreSmoothingOptions at_limit = options.smoothing;
   at_limit.max_turning_deg = std::max(at_limit.max_turning_deg, CheckOptions{}.max_turning_angle_deg);
@@ -777,11 +774,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
     if (smooth) {
       // The positions `from` smoothed only at the limit, as a fallback (where that differs).
       const auto limit_fallback = [&](const std::vector<Vec3>& from, bool unmoved) {
-        if (!limit_differs) return;
-        springs::SpringSystem limited = lines;
-        limited.positions = from;
-        const FibreSmoothingReport r = smooth_fibres(lattice, limited, query, end_tolerance, at_limit);
-        if (r.moved > 0) fallbacks.push_back({std::move(limited.positions), unmoved, false, false, r.to_json()});
+        if (limit_differs) fallbacks.push_back({from, unmoved, false, false, &at_limit, true});
       };
       const std::vector<Vec3> contained = lines.positions;
       const FibreSmoothingReport smoothing = smooth_fibres(lattice, lines, query, end_tolerance, options.smoothing);
@@ -790,11 +783,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       into["smoothing"]["reverted"] = false;
       if (smoothed > 0) limit_fallback(contained, false);
       if (moved > 0) {
-        springs::SpringSystem unmoved = lines;
-        unmoved.positions = aligned;
-        const nlohmann::json report_unmoved =
-            smooth_fibres(lattice, unmoved, query, end_tolerance, options.smoothing).to_json();
-        fallbacks.push_back({std::move(unmoved.positions), true, false, false, report_unmoved});
+        fallbacks.push_back({aligned, true, false, false, &options.smoothing});
         limit_fallback(aligned, true);
       }
     }
@@ -939,14 +928,22 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
       nlohmann::json fallbacks_report = {{"failed", report.quality.failed},
                                          {"coverage_p95", report.quality.coverage.p95},
                                          {"tried", nlohmann::json::array()}};
-      for (const Fallback& fallback : fallbacks) {
+      for (Fallback& fallback : fallbacks) {
+        nlohmann::json smoothing = nullptr;  // the smoothing report of the positions tried, when smoothed
+        if (fallback.smooth) {
+          springs::SpringSystem smoothed = system;
+          smoothed.positions = std::move(fallback.positions);
+          const FibreSmoothingReport r = smooth_fibres(lattice, smoothed, query, end_tolerance, *fallback.smooth);
+          if (fallback.only_if_moved && r.moved == 0) continue;
+          fallback.positions = std::move(smoothed.positions);
+          smoothing = r.to_json();
+        }
         Polylines fibres = fibres_of(fallback.positions);
         CheckReport quality = check_fibres(fibres, muscle, query, checked_against, options.check);
         fallbacks_report["tried"].push_back({{"unmoved", fallback.unmoved},
                                              {"unsmoothed", fallback.unsmoothed},
-                                             {"smoothed_above_deg", fallback.smoothing.is_null()
-                                                                        ? nlohmann::json(nullptr)
-                                                                        : fallback.smoothing["above_deg"]},
+                                             {"smoothed_above_deg",
+                                              smoothing.is_null() ? nlohmann::json(nullptr) : smoothing["above_deg"]},
                                              {"unheld", fallback.unheld},
                                              {"failed", quality.failed},
                                              {"coverage_p95", quality.coverage.p95},
@@ -960,8 +957,8 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
           report.untangle["segments_reverted"] = true;
         }
         if (fallback.unsmoothed) report.containment["smoothing"]["reverted"] = true;
-        if (!fallback.smoothing.is_null()) {
-          report.containment["smoothing"] = fallback.smoothing;
+        if (!smoothing.is_null()) {
+          report.containment["smoothing"] = smoothing;
           report.containment["smoothing"]["reverted"] = false;
         }
         if (fallback.unmoved) {
