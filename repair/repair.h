@@ -59,6 +59,8 @@ struct RepairOptions {
   double wrap_offset_ratio = 1.0 / 30.0;
   /// Largest distance of a wrap from the input, share of the diagonal (default 0.02: a coarse wrap
   /// that bridges a real hole or handle is not a repair; a faithful one lies about alpha / 30 away).
+  /// The same limit holds the refill of self-intersecting regions: a refill the surface before it
+  /// lies farther from than this has replaced the surface, and the mesh is wrapped instead.
   double wrap_max_distance = 0.02;
   /// Alpha levels from coarse to fine (default 5: 16, 8, 4, 2 and 1 times wrap_alpha).
   int wrap_levels = 5;

@@ -343,6 +343,7 @@ class RepairPipeline {
     step(
         "untangle_self_intersections", [&] { return untangle_by_smoothing(mesh); }, "vertices smoothed to undo folds");
     if (!PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh)) return;
+    const TriangleMesh before_cut = from_cgal(mesh);
     step(
         "remove_self_intersections",
         [&] {
@@ -360,6 +361,13 @@ class RepairPipeline {
       throw NeedsWrap{"removing self-intersections left an open or invalid mesh"};
     if (PMP::does_self_intersect<CGAL::Parallel_if_available_tag>(mesh))
       throw NeedsWrap{"self-intersections remain after local repair"};
+    // Where faces intersect nearly everywhere (a folded surface) the cut-out regions join up and
+    // the refill replaces most of the surface by a few patches: a result that the surface before
+    // the cut does not lie on is no repair of it (the same limit as a wrap's), so it is wrapped.
+    const double deviation = detail::one_sided_distance(before_cut, from_cgal(mesh), 4000) / diagonal_;
+    if (deviation > options_.wrap_max_distance)
+      throw NeedsWrap{"refilling the self-intersecting regions moved the surface " +
+                      std::to_string(deviation * 100.0) + "% of the diagonal away from the input"};
   }
 
   // Laplacian smoothing restricted to the neighbourhood of intersecting faces; the neighbourhood
