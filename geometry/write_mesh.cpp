@@ -100,6 +100,23 @@ std::string stl_bytes(const std::string& path, const TriangleMesh& mesh) {
   out.resize(80, ' ');
   append_le<std::uint32_t>(out, static_cast<std::uint32_t>(mesh.triangles.size()));
   out.reserve(84 + 50 * mesh.triangles.size());
+  // STL holds float32 only: where rounding to it merges a triangle's distinct corners (large
+  // offsets against a small mesh), the file would hold a different mesh, so nothing is written.
+  const auto as_float = [](const Vec3& p) {
+    return Eigen::Vector3f(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  };
+  long collapsed = 0;
+  for (const Triangle& t : mesh.triangles) {
+    const Vec3& a = mesh.positions[static_cast<std::size_t>(t[0])];
+    const Vec3& b = mesh.positions[static_cast<std::size_t>(t[1])];
+    const Vec3& c = mesh.positions[static_cast<std::size_t>(t[2])];
+    const Eigen::Vector3f fa = as_float(a), fb = as_float(b), fc = as_float(c);
+    if ((a != b && fa == fb) || (b != c && fb == fc) || (c != a && fc == fa)) ++collapsed;
+  }
+  if (collapsed > 0)
+    throw IoError("writing " + path + ": STL's single-precision coordinates merge distinct corners of " +
+                  std::to_string(collapsed) + " triangle(s) (coordinates too large for the mesh's size); " +
+                  "write .off, .obj, .ply or .vtk, which keep double precision");
   for (const Triangle& t : mesh.triangles) {
     const Vec3& a = mesh.positions[static_cast<std::size_t>(t[0])];
     const Vec3& b = mesh.positions[static_cast<std::size_t>(t[1])];

@@ -103,6 +103,24 @@ TEST_CASE("binary STL round-trips within float precision", "[geometry][io]") {
   for (int i = 0; i < 3; ++i) CHECK(normal[i] == Approx(n[i]).margin(1e-6));
 }
 
+TEST_CASE("binary STL refuses a mesh whose corners single precision would merge, and writes nothing", "[geometry][io]") {
+  TempDir dir;
+  TriangleMesh mesh;  // a 0.1 mm tetrahedron 10 km from the origin, in mm: float32 steps by 1 there
+  mesh.positions = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0, 0.1, 0), Vec3(0, 0, 0.1)};
+  for (Vec3& p : mesh.positions) p += Vec3::Constant(1e7);
+  mesh.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const std::string path = dir.file("mesh.stl");
+  try {
+    write_triangle_mesh(path, mesh);
+    FAIL("expected IoError");
+  } catch (const IoError& e) {
+    CHECK(std::string(e.what()).find("single-precision") != std::string::npos);
+  }
+  CHECK_FALSE(std::filesystem::exists(path));
+  write_triangle_mesh(dir.file("mesh.off"), mesh);  // double precision keeps them apart
+  CHECK(read_polygon_soup(dir.file("mesh.off")).points.size() == mesh.positions.size());
+}
+
 TEST_CASE("writers refuse an unknown extension before writing anything", "[geometry][io]") {
   TempDir dir;
   const std::string path = dir.file("mesh.xyz");
