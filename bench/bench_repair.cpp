@@ -25,7 +25,7 @@ namespace {
 
 struct RepairBenchArgs {
   std::string data = FASCICLE_DATA_DIR;
-  std::string sets = "muscles,broken";
+  std::string sets = "muscles,broken,extra";
   std::string json;
   double time_limit = 120.0;
 };

@@ -127,12 +127,12 @@ if tests:
 repair = section("Repair", "repair.json")
 if repair is not None:
     emit("`fascicle bench repair --data ../shared/data --json docs/bench/repair.json`: every mesh under "
-         "`muscles/` and `broken/` repaired by its own `fascicle -q --time-limit 120 repair IN -o OUT --report R` "
+         "`muscles/`, `broken/` and `extra/` repaired by its own `fascicle -q --time-limit 120 repair IN -o OUT --report R` "
          "process, as a user runs it. Wall s: the repair itself (reading and writing excluded); CPU s: the "
-         "process and its alpha-wrap workers. Hausdorff: one-sided, the output against the part of the input "
-         "kept, and against the whole input, relative to the bounding-box diagonal.")
+         "process and its alpha-wrap workers. Hausdorff: two-sided, between the output and the part of the input "
+         "kept, and the whole input, relative to the bounding-box diagonal.")
     emit("")
-    for label, prefix in (("muscles", "muscles/"), ("broken", "broken/")):
+    for label, prefix in (("muscles", "muscles/"), ("broken", "broken/"), ("extra", "extra/")):
         xs = [r for r in repair if r["mesh"].startswith(prefix)]
         if not xs:
             continue
