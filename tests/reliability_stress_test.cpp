@@ -203,12 +203,22 @@ void make_case(Case& c, const PolygonSoup& muscle, const std::string& dir) {
   bool finite = true;
   for (const Vec3& p : broken.points) finite = finite && p.allFinite();
   static const char* formats[] = {"off", "obj", "ply", "stl", "vtk"};
-  const std::string ext = finite ? formats[derive_seed(seed, 101) % 5] : "off";
+  std::string ext = finite ? formats[derive_seed(seed, 101) % 5] : "off";
   c.input = dir + "/broken." + ext;
-  if (finite)
-    write_triangle_mesh(c.input, soup_triangles(broken));
-  else
+  if (finite) {
+    try {
+      write_triangle_mesh(c.input, soup_triangles(broken));
+    } catch (const IoError&) {
+      // STL's float32 merges the corners of a mesh scaled down far from the origin (the writer
+      // refuses it): the same mesh goes in as OFF.
+      ext = "off";
+      c.input = dir + "/broken." + ext;
+      write_triangle_mesh(c.input, soup_triangles(broken));
+      c.description += "(refused as .stl) ";
+    }
+  } else {
     write_off_text(c.input, broken);
+  }
   c.description += "as ." + ext;
 }
 
