@@ -136,7 +136,7 @@ void add_check_command(CLI::App& app) {
   cmd->add_option("muscle", args->muscle,
                   "Muscle surface (off, obj, stl, ply, vtk, txt); repaired when not closed genus 0")
       ->required();
-  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z rows, CSV naming x, y, z columns, or 3D Slicer .fcsv / .mrk.json); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_flag("--json", args->json, "Print the JSON report to stdout instead of the table");
   cmd->add_option("--report", args->report, "Write the JSON report to this file");

@@ -209,7 +209,7 @@ void add_decompose_command(CLI::App& app) {
                   "Also write a tetrahedral mesh of the muscle (CGAL 3D mesh generation) with a unit fibre direction "
                   "per cell, for finite-element models (.vtu)");
   cmd->add_option("--fe-cells", args->fe_cells, "About this many tetrahedra in --fe-mesh")->capture_default_str();
-  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z rows, CSV naming x, y, z columns, or 3D Slicer .fcsv / .mrk.json); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_option("--template", args->kind,
                   "Fibre template: parallel, pennate, curved, fanned, rectus, unipennate, bipennate")

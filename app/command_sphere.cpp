@@ -185,7 +185,7 @@ void add_sphere_command(CLI::App& app) {
                   "tutte: automatic (long shapes: tube start, progressive-mesh start when it is not bijective; "
                   "round ones: progressive; default), or one start only: tube, progressive, stereographic")
       ->capture_default_str();
-  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z per line); default: automatic end");
+  cmd->add_option("--origin", args->origin, "Origin landmark points (x y z rows, CSV naming x, y, z columns, or 3D Slicer .fcsv / .mrk.json); default: automatic end");
   cmd->add_option("--insertion", args->insertion, "Insertion landmark points; default: automatic end");
   cmd->add_option("--max-landmark-distance", args->attachments.max_landmark_distance,
                   "Landmarks farther from the surface than this fraction of the diagonal are an error")

@@ -475,3 +475,47 @@ TEST_CASE("corrupted files give an InputError or a valid soup, nothing else", "[
   CHECK(errors > 1000);  // most corruptions are caught
   CHECK(successes > 0);  // some are harmless (a changed digit)
 }
+
+TEST_CASE("landmark points as CSV: separators, a header row naming x, y and z, ParaView's Points columns",
+          "[geometry][io]") {
+  TempDir dir;
+  const std::vector<Vec3> expected{Vec3(1.5, 2, -3), Vec3(40, 5, 6)};
+  write_bytes(dir.file("a.csv"), "1.5,2,-3\n40, 5 ,6\n");
+  CHECK(read_points(dir.file("a.csv")) == expected);
+  write_bytes(dir.file("b.csv"), "1.5;2;-3\r\n40;5;6\r\n");
+  CHECK(read_points(dir.file("b.csv")) == expected);
+  write_bytes(dir.file("c.csv"), "label,\"X\",\"Y\",\"Z\",note\nA,1.5,2,-3,crest\nB,4e1,5,6,\n");
+  CHECK(read_points(dir.file("c.csv")) == expected);
+  write_bytes(dir.file("d.csv"), "\"Points:2\",\"vtkOriginalIndices\",\"Points:0\",\"Points:1\"\n-3,0,1.5,2\n6,1,40,5\n");
+  CHECK(read_points(dir.file("d.csv")) == expected);
+  // Errors stay one line with the row: a header without a z column is no header.
+  write_bytes(dir.file("e.csv"), "x,y,w\n1,2,3\n");
+  require_error([&] { read_points(dir.file("e.csv")); }, ErrorCode::bad_number, dir.file("e.csv"), "line 1");
+  write_bytes(dir.file("f.csv"), "id,x,y,z\n1,1.5,2\n");
+  require_error([&] { read_points(dir.file("f.csv")); }, ErrorCode::malformed, dir.file("f.csv"), "line 2");
+  write_bytes(dir.file("g.csv"), "x,y,z\n");
+  require_error([&] { read_points(dir.file("g.csv")); }, ErrorCode::file_empty, dir.file("g.csv"), "line 2");
+}
+
+TEST_CASE("landmark points from 3D Slicer markups: .fcsv and .mrk.json", "[geometry][io]") {
+  TempDir dir;
+  const std::vector<Vec3> expected{Vec3(-12.5, 30.25, 7), Vec3(4, 5, 6)};
+  write_bytes(dir.file("f.fcsv"),
+              "# Markups fiducial file version = 4.11\n# CoordinateSystem = LPS\n"
+              "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
+              "1,-12.5,30.25,7,0,0,0,1,1,1,0,F-1,,\n"
+              "2,4,5,6,0,0,0,1,1,1,0,F-2,,vtkMRMLScalarVolumeNode1\n");
+  CHECK(read_points(dir.file("f.fcsv")) == expected);
+  write_bytes(dir.file("m.mrk.json"),
+              R"({"@schema": "https://example.org/markups-schema-v1.0.3.json#",
+                  "markups": [{"type": "Fiducial", "coordinateSystem": "LPS", "controlPoints": [
+                    {"id": "1", "label": "F-1", "position": [-12.5, 30.25, 7.0], "positionStatus": "defined"},
+                    {"id": "2", "label": "F-2", "position": [4, 5, 6], "positionStatus": "defined"}]}]})");
+  CHECK(read_points(dir.file("m.mrk.json")) == expected);
+  write_bytes(dir.file("n.mrk.json"), R"({"markups": [{"type": "Fiducial", "controlPoints": []}]})");
+  require_error([&] { read_points(dir.file("n.mrk.json")); }, ErrorCode::file_empty, dir.file("n.mrk.json"), "");
+  write_bytes(dir.file("o.mrk.json"), R"({"markups": [{"controlPoints": [{"position": [1, 2]}]}]})");
+  require_error([&] { read_points(dir.file("o.mrk.json")); }, ErrorCode::malformed, dir.file("o.mrk.json"), "");
+  write_bytes(dir.file("p.mrk.json"), "{\"markups\": [");
+  require_error([&] { read_points(dir.file("p.mrk.json")); }, ErrorCode::malformed, dir.file("p.mrk.json"), "");
+}
