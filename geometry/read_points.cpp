@@ -10,7 +10,6 @@
 #include <array>
 #include <cctype>
 #include <charconv>
-#include <cmath>
 #include <optional>
 
 namespace fascicle {

@@ -112,23 +112,18 @@ std::string stl_bytes(const std::string& path, const TriangleMesh& mesh) {
     const Vec3& c = mesh.positions[static_cast<std::size_t>(t[2])];
     const Eigen::Vector3f fa = as_float(a), fb = as_float(b), fc = as_float(c);
     if ((a != b && fa == fb) || (b != c && fb == fc) || (c != a && fc == fa)) ++collapsed;
+    Vec3 normal = (b - a).cross(c - a);
+    const double length = normal.norm();
+    normal = length > 0 ? Vec3(normal / length) : Vec3::Zero();
+    for (int k = 0; k < 3; ++k) append_le<float>(out, static_cast<float>(normal[k]));
+    for (const Eigen::Vector3f* p : {&fa, &fb, &fc})
+      for (int k = 0; k < 3; ++k) append_le<float>(out, (*p)[k]);
+    append_le<std::uint16_t>(out, 0);
   }
   if (collapsed > 0)
     throw IoError("writing " + path + ": STL's single-precision coordinates merge distinct corners of " +
                   std::to_string(collapsed) + " triangle(s) (coordinates too large for the mesh's size); " +
                   "write .off, .obj, .ply or .vtk, which keep double precision");
-  for (const Triangle& t : mesh.triangles) {
-    const Vec3& a = mesh.positions[static_cast<std::size_t>(t[0])];
-    const Vec3& b = mesh.positions[static_cast<std::size_t>(t[1])];
-    const Vec3& c = mesh.positions[static_cast<std::size_t>(t[2])];
-    Vec3 normal = (b - a).cross(c - a);
-    const double length = normal.norm();
-    normal = length > 0 ? Vec3(normal / length) : Vec3::Zero();
-    for (int k = 0; k < 3; ++k) append_le<float>(out, static_cast<float>(normal[k]));
-    for (const Vec3* p : {&a, &b, &c})
-      for (int k = 0; k < 3; ++k) append_le<float>(out, static_cast<float>((*p)[k]));
-    append_le<std::uint16_t>(out, 0);
-  }
   return out;
 }
 
