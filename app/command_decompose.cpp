@@ -268,6 +268,10 @@ void add_decompose_command(CLI::App& app) {
                   "The first (harmonic) settle is one sparse Cholesky solve on lattices of at most this many points, "
                   "a multigrid solve on larger ones (0: always multigrid)")
       ->capture_default_str();
+  cmd->add_option("--map-faces", o.map_faces,
+                  "Largest surface, in triangles, the sphere map and the placement work on; a finer muscle is "
+                  "simplified for them, the fibres still fill and are checked on the muscle itself")
+      ->capture_default_str();
   cmd->add_option("--max-face-depth", o.placement.max_face_depth,
                   "Largest depth of an attachment face, as a share of the distance to the first ring of fibre points")
       ->capture_default_str();

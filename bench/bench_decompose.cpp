@@ -8,6 +8,7 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
 #include "geometry/read_points.h"
+#include "geometry/subdivide_mesh.h"
 #include "repair/repair.h"
 
 #include <nlohmann/json.hpp>
@@ -40,6 +41,8 @@ struct DecomposeBenchArgs {
   bool skip_speed = false, skip_templates = false, skip_corpus = false;
   std::string scale;                                // "FIBRESxPOINTS,..." for the scale run; empty: no scale run
   bool scale_direct = false;                        // the scale run also with the harmonic start's direct solve forced
+  std::string surface;                              // "1,2,3": subdivision levels of the surface run; empty: none
+  bool surface_full = false;                        // the surface run also with the map on the whole surface
   double edge_cell = DecomposeOptions{}.edge_cell;  // DecomposeOptions::edge_cell of every run
   // The decomposition options of every run: the defaults but for the edge cells.
   DecomposeOptions options() const {
@@ -72,6 +75,28 @@ std::vector<std::array<int, 2>> parse_scale(const std::string& text) {
     begin = end + 1;
   }
   return sizes;
+}
+
+// "1,2,3" -> {1, 2, 3}: subdivision levels, each in 0..4 and not below the one before.
+std::vector<int> parse_levels(const std::string& text) {
+  std::vector<int> levels;
+  std::size_t begin = 0;
+  while (begin < text.size()) {
+    const std::size_t end = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, end - begin);
+    std::size_t used = 0;
+    int level = -1;
+    try {
+      level = std::stoi(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != item.size() || item.empty() || level < 0 || level > 4 || (!levels.empty() && level < levels.back()))
+      throw OptionError("--surface: '" + item + "' is not a level in 0..4 at or above the one before (e.g. 1,2,3)");
+    levels.push_back(level);
+    begin = end + 1;
+  }
+  return levels;
 }
 
 long peak_resident_kib() {
@@ -108,7 +133,8 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
   nlohmann::json out = {{"speed", nlohmann::json::array()},
                         {"templates", nlohmann::json::array()},
                         {"corpus", nlohmann::json::array()},
-                        {"scale", nlohmann::json::array()}};
+                        {"scale", nlohmann::json::array()},
+                        {"surface", nlohmann::json::array()}};
   const fs::path data(args.data);
   const std::vector<std::array<int, 2>> scale = parse_scale(args.scale);
   // The speed and scale runs decompose the same muscle: repaired once, when the first needs it.
@@ -207,6 +233,55 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
       }
     }
   }
+  if (!args.surface.empty()) {
+    // Finer surfaces of the same muscle (midpoint subdivision: the same shape, 4 times the
+    // triangles a level): the map on the surface simplified to DecomposeOptions::map_faces, and
+    // with --surface-full on the whole surface, each judged by the whole check's figures.
+    const std::vector<int> levels = parse_levels(args.surface);
+    TriangleMesh surface = speed_muscle();
+    int level_made = 0;
+    std::printf("surface: %s subdivided, one decomposition each (seconds; memory: the bench's peak so far)\n",
+                fs::path(args.muscle).filename().string().c_str());
+    std::printf("%5s %9s %-10s %9s %8s %8s %8s %8s %6s %7s %9s %11s %9s\n", "level", "triangles", "map", "simplify",
+                "sphere", "check", "total", "pass", "segs", "turn", "ends", "", "peak MiB");
+    for (const int level : levels) {
+      while (level_made < level) surface = subdivide_mesh(surface), ++level_made;
+      for (const bool full : {false, true}) {
+        // A surface at or under map_faces is mapped whole anyway.
+        if (full && (!args.surface_full || static_cast<long>(surface.triangles.size()) <= args.options().map_faces))
+          continue;
+        DecomposeOptions options = args.options();
+        if (full) options.map_faces = std::numeric_limits<long>::max();
+        const auto t0 = std::chrono::steady_clock::now();
+        const Decomposition d = decompose_repaired(surface, Landmarks{}, options);
+        const double wall = since(t0);
+        const CheckReport& q = d.report.quality;
+        const bool simplified = d.report.sphere.contains("simplified");
+        const double simplify_seconds = simplified ? d.report.sphere["simplified"]["seconds"].get<double>() : 0.0;
+        const long map_triangles =
+            simplified ? d.report.sphere["simplified"]["faces_after"].get<long>() : static_cast<long>(surface.triangles.size());
+        const long peak = peak_resident_kib();
+        std::printf("%5d %9zu %-10ld %9.3f %8.3f %8.3f %8.3f %8s %6ld %7.1f %5.2f/%5.2f %9.1f\n", level,
+                    surface.triangles.size(), map_triangles, simplify_seconds, d.report.sphere_seconds,
+                    d.report.check_seconds, wall, q.pass ? "pass" : "FAIL", q.crossing_segments, q.turning.max_deg,
+                    q.origin_ends.share, q.insertion_ends.share, static_cast<double>(peak) / 1024.0);
+        out["surface"].push_back({{"muscle", args.muscle},
+                                  {"level", level},
+                                  {"triangles", surface.triangles.size()},
+                                  {"map_triangles", map_triangles},
+                                  {"simplify_seconds", simplify_seconds},
+                                  {"sphere_seconds", d.report.sphere_seconds},
+                                  {"placement_seconds", d.report.placement_seconds},
+                                  {"settle_seconds", d.report.settle_seconds},
+                                  {"check_seconds", d.report.check_seconds},
+                                  {"seconds", wall},
+                                  {"peak_resident_kib_so_far", peak},
+                                  {"max_turning_deg", q.turning.max_deg},
+                                  {"ends", {q.origin_ends.share, q.insertion_ends.share}},
+                                  {"quality", quality_json(q)}});
+      }
+    }
+  }
   if (!args.skip_templates || !args.skip_corpus)
     std::printf("%-52s %-8s %8s %6s %7s %8s %8s\n", "muscle", "status", "inside", "invert", "cov95", "attach",
                 "seconds");
@@ -299,6 +374,11 @@ void add_decompose_bench(CLI::App& bench) {
   cmd->add_option("--edge-cell", args->edge_cell,
                   "Every run with this width of the edge cells (decompose --edge-cell), in fibre spacings")
       ->capture_default_str();
+  cmd->add_option("--surface", args->surface,
+                  "Subdivision levels of the speed muscle for the surface run, e.g. 1,2,3 (4 times the triangles a "
+                  "level); empty: no surface run");
+  cmd->add_flag("--surface-full", args->surface_full,
+                "The surface run also with the sphere map on the whole surface (no simplification)");
   cmd->add_flag("--scale-direct", args->scale_direct,
                 "Scale run: each size also with the harmonic start's direct solve forced (for comparison)");
   cmd->callback([args] { run_decompose_bench(*args); });

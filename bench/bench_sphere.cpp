@@ -5,6 +5,7 @@
 
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
+#include "geometry/subdivide_mesh.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
 #include "repair/repair.h"
@@ -17,7 +18,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <memory>
 #include <random>
 
@@ -46,30 +46,6 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-/// Midpoint subdivision: every triangle into four (the surface keeps its shape exactly).
-TriangleMesh subdivide(const TriangleMesh& in) {
-  TriangleMesh out;
-  out.positions = in.positions;
-  std::map<std::pair<int, int>, int> mid;
-  auto midpoint = [&](int a, int b) {
-    const auto key = std::minmax(a, b);
-    const auto it = mid.find(key);
-    if (it != mid.end()) return it->second;
-    out.positions.push_back(0.5 * (in.positions[a] + in.positions[b]));
-    const int id = static_cast<int>(out.positions.size()) - 1;
-    mid.emplace(key, id);
-    return id;
-  };
-  for (const Triangle& t : in.triangles) {
-    const int a = midpoint(t[0], t[1]), b = midpoint(t[1], t[2]), c = midpoint(t[2], t[0]);
-    out.triangles.push_back({t[0], a, c});
-    out.triangles.push_back({t[1], b, a});
-    out.triangles.push_back({t[2], c, b});
-    out.triangles.push_back({a, b, c});
-  }
-  return out;
-}
-
 /// Median wall time of `repeat` maps (and through `cpu` the median processor time); the last
 /// map is returned through `map`.
 double time_map(const TriangleMesh& mesh, const SphereMapOptions& options, int repeat, SphereMap& map, double& cpu) {
@@ -93,7 +69,7 @@ void run_sphere_bench(const SphereBenchArgs& args) {
     const std::string path = (fs::path(args.data) / args.muscle).string();
     const TriangleMesh muscle = repair_mesh(read_polygon_soup(path)).mesh;
     SphereMap map;
-    const TriangleMesh big = subdivide(subdivide(muscle));
+    const TriangleMesh big = subdivide_mesh(subdivide_mesh(muscle));
     struct Case {
       std::string name;
       const TriangleMesh* mesh;

@@ -7,6 +7,7 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
+#include "repair/simplify_mesh.h"
 #include "morph/surface_query.h"
 #include "springs/compute_backend.h"
 
@@ -449,6 +450,7 @@ void DecomposeOptions::validate() const {
   tries.validate();
   if (harmonic_direct_points < 0)
     throw OptionError("harmonic_direct_points: must be >= 0, got " + std::to_string(harmonic_direct_points));
+  if (map_faces < 1000) throw OptionError("map_faces: must be >= 1000, got " + std::to_string(map_faces));
 }
 
 nlohmann::json DecomposeReport::to_json() const {
@@ -481,6 +483,8 @@ namespace {
 // The muscle's sphere map and its point locator, made once for both tries (the second does not
 // change the sphere options).
 struct MuscleSphere {
+  std::optional<TriangleMesh> simplified;  // the surface mapped when the muscle is finer than map_faces
+  SimplifyReport simplify;
   SphereMap map;
   std::optional<SphereLocator> locator;  // empty when the map is not a bijection
   double seconds = 0.0;
@@ -583,6 +587,7 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   // Sphere map of the muscle (made before the attempts).
   const SphereMap& map = sphere.map;
   report.sphere = map.report.to_json();
+  if (sphere.simplified) report.sphere["simplified"] = sphere.simplify.to_json();
   if (!sphere.locator)
     throw SolverError("sphere map: not a bijection (" + map.report.failure + "); try --sphere-method " +
                       std::string(map.report.method == "tutte" ? "relax" : "tutte"));
@@ -594,7 +599,13 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   FASCICLE_CHECK(same_lattice(lattice_options_of(options), prepared.options),
                  "the attempt's lattice options are the prepared lattice's");
   const springs::Lattice& lattice = prepared.lattice;
-  const Placement placement = place_template(muscle, map.positions, locator, areas, lattice, options.placement);
+  // On a simplified surface the placed points move to the muscle's closest points (the
+  // simplification's error, a small part of a lattice cell).
+  Placement placement = place_template(sphere.simplified ? *sphere.simplified : muscle, map.positions, locator, areas,
+                                       lattice, options.placement);
+  if (sphere.simplified)
+    for (SurfacePoint& p : placement.points)
+      if (p.face >= 0) p = query.closest_point(p.position);
   report.placement = placement.report.to_json();
   report.lattice = {{"template", springs::template_name(options.kind)},
                     {"model", static_cast<int>(options.model)},
@@ -1058,8 +1069,11 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       },
       [&] {
         const auto t = Clock::now();
-        sphere.map = map_to_sphere(muscle, options.sphere);
-        if (sphere.map.report.quality.bijective()) sphere.locator.emplace(sphere.map.positions, muscle.triangles);
+        if (static_cast<long>(muscle.triangles.size()) > options.map_faces)
+          sphere.simplified = simplify_mesh(muscle, options.map_faces, &sphere.simplify);
+        const TriangleMesh& mapped = sphere.simplified ? *sphere.simplified : muscle;
+        sphere.map = map_to_sphere(mapped, options.sphere);
+        if (sphere.map.report.quality.bijective()) sphere.locator.emplace(sphere.map.positions, mapped.triangles);
         sphere.seconds = since(t);
       });
   const SurfaceQuery& query = *built_query;

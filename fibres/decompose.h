@@ -7,7 +7,8 @@
 ///     fibres/decompose_mesh.h, which then calls decompose_repaired() below with the repaired mesh
 ///     (plain data: this header does not depend on the repair stage);
 ///  2. attachment areas: from landmark files, or automatic (morph/attachments.h);
-///  3. sphere map of the muscle (morph/sphere_map.h), bijective, and a locator on it;
+///  3. sphere map of the muscle (morph/sphere_map.h), bijective, and a locator on it (of a copy
+///     simplified to map_faces triangles where the muscle is finer: repair/simplify_mesh.h);
 ///  4. the template lattice (springs/lattice.h) with a ring of surface lines around the requested
 ///     fibres: (nr + 2) x (ns + 2) lines of `resolution` points; its surface points are placed on
 ///     the muscle (fibres/template_placement.h: template sphere, pole-frame alignment of both
@@ -102,6 +103,11 @@ struct DecomposeOptions {
   /// Largest lattice whose first (harmonic) settle is one sparse Cholesky solve, >= 0 (default 8192);
   /// larger ones use multigrid (springs/multigrid.h): the factor's fill grows about as points^2.
   long harmonic_direct_points = 8192;
+  /// Largest surface the sphere map and the placement (steps 3-4) work on, triangles, >= 1000
+  /// (default 100000): a finer muscle is simplified for them (repair/simplify_mesh.h) and the placed
+  /// points moved to its closest points; the map's factorisations grow faster than the surface,
+  /// and 15 x 100 fibres need far fewer triangles. Every other step works on the muscle itself.
+  long map_faces = 100000;
   /// Settle of the interior (default: static solver, relative residual 1e-6, at most 20000 iterations).
   springs::SettleOptions settle = default_settle();
   /// Settle backend (default cpu): "cpu", "gl" (float32 compute shaders, finished on the CPU in double

@@ -96,6 +96,10 @@ if want decompose; then
   stamp decompose
   "$program" bench decompose --data "$data" --repeat 5 --skip-templates --json "$out/decompose.json.tmp" > /dev/null
   keep "$out/decompose.json"
+  # Finer surfaces of the same muscle: the map on the simplified surface against the whole one.
+  "$program" bench decompose --data "$data" --skip-speed --skip-templates --skip-corpus --surface 1,2,3 \
+    --surface-full --json "$out/decompose-surface.json.tmp" > /dev/null
+  keep "$out/decompose-surface.json"
 fi
 
 if want templates; then

@@ -372,6 +372,28 @@ if dec is not None:
             emit(quality_row(os.path.basename(r["muscle"]), r))
         emit("")
 
+    surface = load("decompose-surface.json")
+    if surface and surface.get("surface"):
+        emit("### Finer surfaces of one muscle")
+        emit("")
+        emit("`fascicle bench decompose --data ../shared/data --skip-speed --skip-templates --skip-corpus "
+             "--surface 1,2,3 --surface-full --json docs/bench/decompose-surface.json`: the muscle of the speed run, "
+             "midpoint-subdivided (the same shape, 4 times the triangles a level), decomposed with default options, "
+             "the sphere map and placement on the surface simplified to `--map-faces` (default 100000 triangles) and, "
+             "beside it, on the whole surface. Turning and ends: the whole check's figures; memory: the bench "
+             "process's peak so far.")
+        emit("")
+        emit("| triangles | mapped on | simplify s | sphere s (with it) | check s | total s | decompose | "
+             "segments out | turning deg | ends | peak MiB |")
+        emit("|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---:|")
+        for r in surface["surface"]:
+            q = r["quality"]
+            emit("| %d | %d | %.2f | %.2f | %.2f | %.2f | %s | %d | %.1f | %.2f / %.2f | %.0f |" % (
+                r["triangles"], r["map_triangles"], r["simplify_seconds"], r["sphere_seconds"], r["check_seconds"],
+                r["seconds"], "pass" if q["pass"] else "fail", q["crossing_segments"], r["max_turning_deg"],
+                r["ends"][0], r["ends"][1], r["peak_resident_kib_so_far"] / 1024.0))
+        emit("")
+
     templates = load("decompose-templates.json")
     if templates and templates.get("templates"):
         t = templates["templates"]

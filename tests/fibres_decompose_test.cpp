@@ -895,3 +895,30 @@ TEST_CASE("fascicle batch killed with SIGKILL leaves only complete outputs and r
     CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
   }
 }
+
+TEST_CASE("a surface finer than map_faces is mapped simplified, and the fibres fill the muscle itself",
+          "[fibres][decompose]") {
+  TriangleMesh mesh = make_capsule(10.0, 1.5, 64);
+  for (Vec3& p : mesh.positions) p = Vec3(p.y(), p.z(), p.x());
+  REQUIRE(mesh.triangles.size() > 4000);
+  DecomposeOptions options;
+  options.map_faces = 1000;
+  const Decomposition d = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(d.report.status == "ok");
+  CHECK(d.report.quality.pass);
+  const nlohmann::json& simplified = d.report.sphere.at("simplified");
+  CHECK(simplified.at("faces_before").get<long>() == static_cast<long>(mesh.triangles.size()));
+  CHECK(simplified.at("faces_after").get<long>() <= 1000);
+  // Checked against the muscle given: every point inside it, the ends on its surface.
+  CHECK(d.report.quality.inside_fraction == 1.0);
+  CHECK(d.muscle.triangles.size() == mesh.triangles.size());
+  // The same input gives the same fibres.
+  const Decomposition again = decompose_repaired(mesh, Landmarks{}, options);
+  CHECK(again.fibres.lines == d.fibres.lines);
+  // At or under the limit nothing is simplified.
+  options.map_faces = static_cast<long>(mesh.triangles.size());
+  CHECK_FALSE(decompose_repaired(mesh, Landmarks{}, options).report.sphere.contains("simplified"));
+  DecomposeOptions negative;
+  negative.map_faces = 999;
+  CHECK_THROWS_AS(negative.validate(), OptionError);
+}

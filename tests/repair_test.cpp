@@ -9,6 +9,7 @@
 #include "repair/clean_soup.h"
 #include "repair/detail/checks.h"
 #include "repair/repair.h"
+#include "repair/simplify_mesh.h"
 #include "repair/weld_vertices.h"
 
 #include <catch2/catch.hpp>
@@ -320,4 +321,38 @@ TEST_CASE("repair refuses NaN coordinates, empty input and bad options", "[repai
   flat.points = {Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(0, 0, 0)};
   flat.polygons = {{0, 1, 2}};
   CHECK_THROWS_AS(repair_mesh(flat), TopologyError);
+}
+
+TEST_CASE("simplify_mesh keeps a closed genus-0 surface and its shape, and leaves a small one as it is",
+          "[repair][simplify]") {
+  const TriangleMesh sphere = make_icosphere(5, 10.0);  // 20480 faces
+  REQUIRE(sphere.triangles.size() == 20480);
+  SimplifyReport report;
+  const TriangleMesh coarse = simplify_mesh(sphere, 2000, &report);
+  CHECK(static_cast<long>(coarse.triangles.size()) <= 2000);
+  CHECK(coarse.triangles.size() > 1500);  // it stops at the limit, not far below
+  CHECK(report.faces_before == 20480);
+  CHECK(report.faces_after == static_cast<long>(coarse.triangles.size()));
+  INFO("verification: " << verify_genus0(coarse));
+  CHECK(verify_genus0(coarse).empty());
+  CHECK(euler_characteristic(coarse) == 2);
+  // Outward and faithful: the volume of the sphere within 2 %, every vertex near radius 10.
+  CHECK(signed_volume(coarse) == Approx(signed_volume(sphere)).epsilon(0.02));
+  for (const Vec3& p : coarse.positions) CHECK(std::abs(p.norm() - 10.0) < 0.2);
+  // Deterministic.
+  const TriangleMesh again = simplify_mesh(sphere, 2000);
+  CHECK(again.positions == coarse.positions);
+  CHECK(again.triangles == coarse.triangles);
+  // At or under the limit: the same mesh.
+  const TriangleMesh same = simplify_mesh(coarse, 2000);
+  CHECK(same.positions == coarse.positions);
+  CHECK(same.triangles == coarse.triangles);
+}
+
+TEST_CASE("simplify_mesh refuses a bad limit and an open surface", "[repair][simplify]") {
+  const TriangleMesh sphere = make_icosphere(2);
+  CHECK_THROWS_AS(simplify_mesh(sphere, 3), OptionError);
+  TriangleMesh open = sphere;
+  open.triangles.pop_back();
+  CHECK_THROWS_AS(simplify_mesh(open, 100), TopologyError);
 }
