@@ -7,8 +7,8 @@
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
-#include "repair/simplify_mesh.h"
 #include "morph/surface_query.h"
+#include "repair/simplify_mesh.h"
 #include "springs/compute_backend.h"
 
 #include <Eigen/SVD>
@@ -1003,7 +1003,8 @@ nlohmann::json attempt_header(const std::string& change, const std::vector<std::
           {"corner_twist_deg", options.placement.corner_twist_deg},
           {"landmark_strip", options.strip.join},
           {"meridian_rings", options.placement.meridian_rings},
-          {"edge_cell", options.edge_cell}};
+          {"edge_cell", options.edge_cell},
+          {"max_face_depth", options.placement.max_face_depth}};
 }
 
 // One entry of the report's `attempts`: what the try changed and how its check came out.
@@ -1018,6 +1019,7 @@ nlohmann::json attempt_json(const std::string& change, const std::vector<std::st
   j["coverage_p95"] = q.coverage.p95;
   j["attachment_max"] = std::max(q.attachment.origin_max, q.attachment.insertion_max);
   j["layer_ratio"] = q.steps.layer_ratio;
+  j["whole_check_failed"] = failed_criteria(q, CheckOptions{});
   j["free_ring_tried"] = free_ring_tried(r);
   j["seconds"] = r.seconds;
   return j;
@@ -1036,6 +1038,16 @@ SecondTry second_try(const DecomposeOptions& first, const std::vector<std::strin
   if (shows("coverage") && first.edge_cell > 0.5) {
     out.options.edge_cell = 0.5;
     add("narrow_edge_cells");
+  }
+  // A first try that passes decompose's check with ends gathered in the shadow of the layer next
+  // to them, hooked end joints or segments out (the whole check): faces as deep as the first ring,
+  // so that the end layers of cells curve round the muscle's ends and the ends cast from them
+  // spread over their areas.
+  constexpr double kDeepFace = 1.0;  // deeper than the first ring, the end layer would turn over
+  if ((shows("gathered_ends") || shows("sharp_joints") || shows("segments_out")) &&
+      first.placement.max_face_depth < kDeepFace) {
+    out.options.placement.max_face_depth = kDeepFace;
+    add("deep_faces");
   }
   return out;
 }
@@ -1116,7 +1128,8 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     seconds += d->report.seconds;
     if (i == 0) {
       best = std::move(*d);
-      const std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
+      std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
+      if (modes.empty() && best.report.quality.pass) modes = whole_check_modes(best.report.quality);
       if (options.tries.second_try && !modes.empty()) {
         SecondTry second = second_try(options, modes);
         if (second.change.empty())
@@ -1132,7 +1145,14 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     const CheckReport& b = best.report.quality;
     const bool evener = a.pass && b.pass && a.steps.layer_ratio < b.steps.layer_ratio &&
                         a.max_segment_excursion_relative <= b.max_segment_excursion_relative;
-    if (evener || better_result(a, b)) {
+    // After a first try that passed decompose's check, the second only where it passes that check
+    // too: where it fails fewer of the whole check's criteria, or as many and is evener.
+    const std::size_t whole_a = failed_criteria(a, CheckOptions{}).size();
+    const std::size_t whole_b = failed_criteria(b, CheckOptions{}).size();
+    const bool keep = !b.pass  ? better_result(a, b)
+                      : !a.pass ? false
+                                : whole_a < whole_b || (whole_a == whole_b && evener);
+    if (keep) {
       best = std::move(*d);
       kept = static_cast<int>(i);
     }

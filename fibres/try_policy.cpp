@@ -24,4 +24,14 @@ std::vector<std::string> failure_modes(const CheckReport& result, const TryPolic
   return modes;
 }
 
+std::vector<std::string> whole_check_modes(const CheckReport& result) {
+  const std::vector<std::string> failed = failed_criteria(result, CheckOptions{});
+  const auto shows = [&](const char* criterion) { return std::find(failed.begin(), failed.end(), criterion) != failed.end(); };
+  std::vector<std::string> modes;
+  if (shows("ends")) modes.emplace_back("gathered_ends");
+  if (shows("smooth")) modes.emplace_back("sharp_joints");
+  if (shows("segments")) modes.emplace_back("segments_out");
+  return modes;
+}
+
 }  // namespace fascicle

@@ -8,6 +8,13 @@
 ///                  skipped a stretch of muscle)                    -> rings placed by meridian
 ///   coverage       coverage p95 over the check's limit: the outermost fibres lie a whole spacing
 ///                  in from the surface                            -> edge cells of 0.5
+/// and where the first passes decompose's check but not the whole check (CheckOptions' defaults):
+///   gathered_ends  an area's ends cover less than the ends criterion asks: cast along the end
+///                  axis, they gather in the shadow of the layer next to them
+///   sharp_joints   a joint turns by more than the smooth criterion allows (hooked ends)
+///   segments_out   a segment leaves the muscle                     -> faces as deep as the first
+///                  ring: the end layers of cells curve round the muscle's ends, and the ends
+///                  cast from them spread over their areas
 /// decompose_repaired() (fibres/decompose.h) keeps the better of the two (better_result(), or
 /// with uneven layers the evener of two that pass) and names the failure modes in its report.
 #include "fibres/fibre_check.h"
@@ -32,5 +39,9 @@ struct TryPolicy {
 /// "coverage"); empty when it shows none (which can be a failed check: the other criteria have
 /// no second try).
 std::vector<std::string> failure_modes(const CheckReport& result, const TryPolicy& policy);
+
+/// The whole check's failure modes of a try's check ("gathered_ends", "sharp_joints",
+/// "segments_out"), judged with CheckOptions' defaults (failed_criteria()).
+std::vector<std::string> whole_check_modes(const CheckReport& result);
 
 }  // namespace fascicle

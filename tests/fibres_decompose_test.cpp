@@ -8,6 +8,7 @@
 #include "geometry/mesh_io.h"
 #include "geometry/mesh_stats.h"
 #include "geometry/primitives.h"
+#include "geometry/sample_muscle.h"
 #include "morph/sphere_locator.h"
 #include "morph/sphere_map.h"
 #include "tests/test_common.h"
@@ -347,6 +348,7 @@ TEST_CASE("the untangling's segment attempt holds the segments that cut a bend i
   options.contain_segments = false;  // the attempt alone
   options.smoothing.steps = 0;
   options.contact_segments = false;
+  options.tries.second_try = false;  // one try: the segments left out would call the deep-faces try
   const Decomposition loose = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(loose.report.status == "ok");
   REQUIRE(loose.report.quality.crossing_segments > 0);
@@ -374,6 +376,7 @@ TEST_CASE("segments that cut a bend are moved back inside, and the check counts 
   options.contain_segments = false;
   options.smoothing.steps = 0;       // step 11 alone: the smoothing after it would move the fibres again,
   options.contact_segments = false;  // and the untangling's segment attempt before it
+  options.tries.second_try = false;  // one try: the segments left out would call the deep-faces try
   const Decomposition left = decompose_repaired(mesh, Landmarks{}, options);
   REQUIRE(left.report.status == "ok");
   CHECK_FALSE(left.report.containment.contains("segments"));
@@ -641,6 +644,24 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   DecomposeOptions by_area = options;
   by_area.placement.band_by_length = false;  // meridian rings need rings by length
   CHECK(second_try(by_area, {"folds"}).change.empty());
+  // The whole check's modes, for a first try that passes decompose's check: deep faces; nothing
+  // where the first had them already.
+  CheckReport whole = passed;
+  whole.origin_ends.share = 0.1;
+  whole.insertion_ends.share = 0.5;
+  whole.turning.max_deg = 60.0;
+  whole.crossing_segments = 2;
+  CHECK(whole_check_modes(whole) == std::vector<std::string>{"gathered_ends", "sharp_joints", "segments_out"});
+  whole.origin_ends.share = 0.3;
+  whole.turning.max_deg = 20.0;
+  CHECK(whole_check_modes(whole) == std::vector<std::string>{"segments_out"});
+  whole.crossing_segments = 0;
+  CHECK(whole_check_modes(whole).empty());
+  const SecondTry deep = second_try(options, {"gathered_ends"});
+  CHECK(deep.change == "deep_faces");
+  CHECK(deep.options.placement.max_face_depth == 1.0);
+  CHECK_NOTHROW(deep.options.validate());
+  CHECK(second_try(deep.options, {"sharp_joints"}).change.empty());
 
   // A capsule passes at once: no second try.
   const TriangleMesh mesh = capsule();
@@ -921,4 +942,29 @@ TEST_CASE("a surface finer than map_faces is mapped simplified, and the fibres f
   DecomposeOptions negative;
   negative.map_faces = 999;
   CHECK_THROWS_AS(negative.validate(), OptionError);
+}
+
+TEST_CASE("ends gathered on thin tendons call the deep-faces try, whose ends spread over the areas",
+          "[fibres][decompose]") {
+  // The sample muscle's automatic areas are mostly the sides of its thin tendons: cast along the
+  // end axis, the first try's ends land on the tendons' tips.
+  const TriangleMesh mesh = make_fusiform_muscle();
+  const Decomposition d = decompose_repaired(mesh, Landmarks{}, DecomposeOptions{});
+  REQUIRE(d.report.status == "ok");
+  const nlohmann::json attempts = d.report.to_json()["attempts"];
+  INFO(attempts.dump());
+  REQUIRE(attempts.size() == 2);
+  CHECK(attempts[0]["whole_check_failed"] == nlohmann::json{"ends"});
+  CHECK(attempts[1]["change"] == "deep_faces");
+  CHECK(attempts[1]["failure_modes"] == nlohmann::json{"gathered_ends"});
+  CHECK(attempts[1]["max_face_depth"] == 1.0);
+  // The second passes the whole check and is kept.
+  CHECK(d.report.kept_attempt == 1);
+  CHECK(failed_criteria(d.report.quality, CheckOptions{}).empty());
+  // With one try only, the first result is returned.
+  DecomposeOptions one;
+  one.tries.second_try = false;
+  const Decomposition first = decompose_repaired(mesh, Landmarks{}, one);
+  CHECK(first.report.attempts.size() == 1);
+  CHECK(failed_criteria(first.report.quality, CheckOptions{}) == std::vector<std::string>{"ends"});
 }
