@@ -124,6 +124,17 @@ nlohmann::json quality_json(const CheckReport& q) {
           {"max_segment_excursion_relative", q.max_segment_excursion_relative}};
 }
 
+// The stage times, wall time, peak memory so far and check figures of one decomposition.
+nlohmann::json run_json(const Decomposition& d, double wall, long peak) {
+  return {{"sphere_seconds", d.report.sphere_seconds},
+          {"placement_seconds", d.report.placement_seconds},
+          {"settle_seconds", d.report.settle_seconds},
+          {"check_seconds", d.report.check_seconds},
+          {"seconds", wall},
+          {"peak_resident_kib_so_far", peak},
+          {"quality", quality_json(d.report.quality)}};
+}
+
 void print_quality(const std::string& name, const std::string& status, const CheckReport& q, double seconds) {
   std::printf("%-52s %-8s %8.6f %6ld %7.3f %8.4f %8.3f\n", name.c_str(), status.c_str(), q.inside_fraction,
               q.inverted_cells, q.coverage.p95, std::max(q.attachment.origin_max, q.attachment.insertion_max), seconds);
@@ -214,22 +225,17 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
                     h["backend"].get<std::string>().c_str(), harmonic_seconds, d.report.sphere_seconds,
                     d.report.settle_seconds, d.report.check_seconds, wall, d.report.quality.inverted_cells,
                     d.report.quality.coverage.p95, static_cast<double>(peak) / 1024.0);
-        out["scale"].push_back({{"muscle", args.muscle},
-                                {"fibres", fibres},
-                                {"resolution", points},
-                                {"lattice_points", lattice},
-                                {"harmonic_backend", h["backend"]},
-                                {"harmonic_factor_seconds", h["factor_seconds"]},
-                                {"harmonic_setup_seconds", h["setup_seconds"]},
-                                {"harmonic_solve_seconds", h["seconds"]},
-                                {"harmonic_iterations", h["iterations"]},
-                                {"sphere_seconds", d.report.sphere_seconds},
-                                {"placement_seconds", d.report.placement_seconds},
-                                {"settle_seconds", d.report.settle_seconds},
-                                {"check_seconds", d.report.check_seconds},
-                                {"seconds", wall},
-                                {"peak_resident_kib_so_far", peak},
-                                {"quality", quality_json(d.report.quality)}});
+        nlohmann::json row = run_json(d, wall, peak);
+        row.update({{"muscle", args.muscle},
+                    {"fibres", fibres},
+                    {"resolution", points},
+                    {"lattice_points", lattice},
+                    {"harmonic_backend", h["backend"]},
+                    {"harmonic_factor_seconds", h["factor_seconds"]},
+                    {"harmonic_setup_seconds", h["setup_seconds"]},
+                    {"harmonic_solve_seconds", h["seconds"]},
+                    {"harmonic_iterations", h["iterations"]}});
+        out["scale"].push_back(std::move(row));
       }
     }
   }
@@ -265,20 +271,15 @@ void run_decompose_bench(const DecomposeBenchArgs& args) {
                     surface.triangles.size(), map_triangles, simplify_seconds, d.report.sphere_seconds,
                     d.report.check_seconds, wall, q.pass ? "pass" : "FAIL", q.crossing_segments, q.turning.max_deg,
                     q.origin_ends.share, q.insertion_ends.share, static_cast<double>(peak) / 1024.0);
-        out["surface"].push_back({{"muscle", args.muscle},
-                                  {"level", level},
-                                  {"triangles", surface.triangles.size()},
-                                  {"map_triangles", map_triangles},
-                                  {"simplify_seconds", simplify_seconds},
-                                  {"sphere_seconds", d.report.sphere_seconds},
-                                  {"placement_seconds", d.report.placement_seconds},
-                                  {"settle_seconds", d.report.settle_seconds},
-                                  {"check_seconds", d.report.check_seconds},
-                                  {"seconds", wall},
-                                  {"peak_resident_kib_so_far", peak},
-                                  {"max_turning_deg", q.turning.max_deg},
-                                  {"ends", {q.origin_ends.share, q.insertion_ends.share}},
-                                  {"quality", quality_json(q)}});
+        nlohmann::json row = run_json(d, wall, peak);
+        row.update({{"muscle", args.muscle},
+                    {"level", level},
+                    {"triangles", surface.triangles.size()},
+                    {"map_triangles", map_triangles},
+                    {"simplify_seconds", simplify_seconds},
+                    {"max_turning_deg", q.turning.max_deg},
+                    {"ends", {q.origin_ends.share, q.insertion_ends.share}}});
+        out["surface"].push_back(std::move(row));
       }
     }
   }
