@@ -230,9 +230,8 @@ struct Decomposition {
 /// where the first placed them by levels), edge cells of 0.5 for "coverage" (where the first's
 /// were wider), and for the whole check's modes (whole_check_modes(): "gathered_ends",
 /// "sharp_joints", "segments_out") faces as deep as the first ring (placement.max_face_depth 1).
-/// `change` names what changed ("meridian_rings",
-/// "narrow_edge_cells", "deep_faces", joined by "+"), empty when nothing applies: then there is no
-/// second try.
+/// `change` names what changed ("meridian_rings", "narrow_edge_cells", "deep_faces", joined by
+/// "+"), empty when nothing applies: then there is no second try.
 struct SecondTry {
   std::string change;
   DecomposeOptions options;
@@ -253,9 +252,9 @@ int lattice_handedness(const springs::SpringSystem& system, const springs::Latti
 /// Decomposes an already repaired muscle (closed genus 0, outward): steps 2-11, then, where the
 /// first result shows a failure mode of fibres/try_policy.h, once more with second_try()'s options,
 /// keeping the better result: by better_result() after a first that failed decompose's check;
-/// after one that passed it, the second where it passes too and is evener (uneven layers) or fails
-/// fewer of the whole check's criteria; the report's `attempts` lists both tries with the failure modes, `kept_attempt` the one
-/// returned. Throws InputError(landmarks) for far landmarks or coinciding areas, OptionError for
+/// after one that passed it, the second only where it passes too and fails fewer of the whole
+/// check's criteria, or as many and is evener (uneven layers); the report's `attempts` lists both
+/// tries with the failure modes, `kept_attempt` the one returned. Throws InputError(landmarks) for far landmarks or coinciding areas, OptionError for
 /// bad options, SolverError when the sphere map is not a bijection or the first settle diverges,
 /// Error(gpu) for GPU failures; an exception in the second try is recorded in `attempts` and the
 /// first result returned.

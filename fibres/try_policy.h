@@ -15,8 +15,10 @@
 ///   segments_out   a segment leaves the muscle                     -> faces as deep as the first
 ///                  ring: the end layers of cells curve round the muscle's ends, and the ends
 ///                  cast from them spread over their areas
-/// decompose_repaired() (fibres/decompose.h) keeps the better of the two (better_result(), or
-/// with uneven layers the evener of two that pass) and names the failure modes in its report.
+/// decompose_repaired() (fibres/decompose.h) keeps the better of the two (after a first that
+/// fails decompose's check by better_result(); after one that passes it, the second only where it
+/// passes too and fails fewer of the whole check's criteria, or as many and is evener) and names
+/// the failure modes in its report.
 #include "fibres/fibre_check.h"
 
 #include <string>
