@@ -341,6 +341,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   // against an end face can need that. With `free_ring` the surface ring may slide along the
   // surface as well.
   int budget = options.iterations;
+  bool ring_freed = false;  // the free-ring attempts have started
   auto attempt = [&](bool free_ends, bool free_ring, bool contain, bool hold_segments = false) {
     std::vector<UntangleAnchor> anchors;
     std::unordered_map<int, std::size_t> anchor_of;    // lattice point -> its containment anchor
@@ -472,8 +473,11 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       long previous_free = -1;  // free points of the previous run of this round
       // Local first: only the points within `radius` lattice steps (Chebyshev) of an inverted
       // cell or an anchored point move, the rest of the settled lattice stays as it is; the
-      // region grows while cells stay inverted, up to the whole lattice.
+      // region grows while cells stay inverted, up to the whole lattice only once the surface
+      // ring has been freed (its attempt and the one that goes on from it): with the ring where
+      // the settle put it, the points far from the folds are held where they are by it.
       for (int radius : {2, 6, 1 << 20}) {
+        if (radius > 6 && !ring_freed) break;
         if (budget <= 0) break;
         const std::vector<double> dets = tet_jacobian_dets(system.positions, tets);
         std::vector<char> near(static_cast<std::size_t>(lattice.point_count()), 0);
@@ -725,6 +729,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   }
   if (inverted_left > 0 && options.free_ring) {
     report.free_ring_tried = true;
+    ring_freed = true;
     const long ring_left = run_from(settled, true, true, options.containment_energy, "free_ring");
     continue_held(ring_left, everywhere, "free_ring_then_held_ends");
   }
