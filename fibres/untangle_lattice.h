@@ -8,7 +8,8 @@
 /// 2021), each tetrahedron measured against its own settled shape where that shape is good, else
 /// against its layer's mean cell. The work is local first (the points within 2, then 6 lattice
 /// steps of a folded cell move), then, once the surface ring has been freed (below), the whole
-/// lattice; a wider region that frees no more points is skipped. The first attempt holds the fibre ends and starts from the settled lattice (enough
+/// lattice; a wider region that frees no more points is skipped. The first attempt holds the
+/// fibre ends and starts from the settled lattice (enough
 /// where the folds are local, and cheap); while cells stay folded, a second starts again from the
 /// settled lattice with the ends free (each end free within a ball round the nearest point of its
 /// attachment area, end_area_margin, or without areas held by a soft pin at its cast place, at
