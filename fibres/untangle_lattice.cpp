@@ -341,7 +341,6 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   // against an end face can need that. With `free_ring` the surface ring may slide along the
   // surface as well.
   int budget = options.iterations;
-  bool ring_freed = false;  // the free-ring attempts have started
   auto attempt = [&](bool free_ends, bool free_ring, bool contain, bool hold_segments = false) {
     std::vector<UntangleAnchor> anchors;
     std::unordered_map<int, std::size_t> anchor_of;    // lattice point -> its containment anchor
@@ -477,7 +476,7 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
       // ring has been freed (its attempt and the one that goes on from it): with the ring where
       // the settle put it, the points far from the folds are held where they are by it.
       for (int radius : {2, 6, 1 << 20}) {
-        if (radius > 6 && !ring_freed) break;
+        if (radius > 6 && !report.free_ring_tried) break;
         if (budget <= 0) break;
         const std::vector<double> dets = tet_jacobian_dets(system.positions, tets);
         std::vector<char> near(static_cast<std::size_t>(lattice.point_count()), 0);
@@ -729,7 +728,6 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
   }
   if (inverted_left > 0 && options.free_ring) {
     report.free_ring_tried = true;
-    ring_freed = true;
     const long ring_left = run_from(settled, true, true, options.containment_energy, "free_ring");
     continue_held(ring_left, everywhere, "free_ring_then_held_ends");
   }
