@@ -25,7 +25,9 @@ const std::vector<MusclePreset>& muscle_presets() {
       {"gracilis", TemplateKind::parallel, 8.2, "strap"},
       {"iliacus", TemplateKind::fanned, 14.3, "fan-shaped, converging on the psoas tendon"},
       {"peroneus_longus", TemplateKind::bipennate, 14.1, "on both sides of a central tendon"},
-      {"psoas", TemplateKind::parallel, 10.6, "fusiform"},
+      // Fascicles from each lumbar level, of similar length, insert obliquely onto one tendon
+      // (Bogduk, Pearcy and Hadfield 1992, Clin Biomech 7:109-119).
+      {"psoas", TemplateKind::unipennate, 10.6, "from the lumbar vertebrae onto its tendon"},
       {"rectus_femoris", TemplateKind::bipennate, 13.9, "on both sides of a central aponeurosis"},
       {"sartorius", TemplateKind::parallel, 1.3, "strap"},
       {"semimembranosus", TemplateKind::unipennate, 15.1, "between proximal and distal aponeuroses"},

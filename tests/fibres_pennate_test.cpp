@@ -141,6 +141,7 @@ TEST_CASE("muscle presets: names and templates", "[fibres][pennate]") {
   CHECK(muscle_preset("vastus_lateralis").kind == springs::TemplateKind::unipennate);
   CHECK(muscle_preset("rectus_femoris").kind == springs::TemplateKind::bipennate);
   CHECK(muscle_preset("sartorius").kind == springs::TemplateKind::parallel);
+  CHECK(muscle_preset("psoas").kind == springs::TemplateKind::unipennate);
   try {
     muscle_preset("vastus_lateral");
     FAIL("an unknown name is refused");
