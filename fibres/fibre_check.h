@@ -140,7 +140,10 @@ struct FarSamples {
   /// (the axis of muscle_length), bin 0 at the origin end (the end nearer the origin area's
   /// centroid).
   std::array<int, kAlongBins> along_samples{}, along_far{};
-  /// Samples and far samples by depth (distance to the surface) in ideal spacings.
+  /// Samples and far samples by depth (distance to the surface) in ideal spacings; measured only
+  /// when the coverage criterion fails (depth_measured; else all zero): a closest-point query per
+  /// sample, and only a failure needs explaining.
+  bool depth_measured = false;
   std::array<int, kDepthBins> depth_samples{}, depth_far{};
 };
 

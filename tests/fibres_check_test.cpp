@@ -375,6 +375,7 @@ TEST_CASE("far samples are counted where they lie along the muscle and in depth"
   CHECK(far.along_far[9] == far.along_samples[9]);
   CHECK(far.fraction == Approx(0.15).margin(0.01));  // the insertion end beyond x = 7.07 of 20
   // Depth below the surface: the box is 10 wide, so no sample lies deeper than 5 = 1.41 spacings.
+  CHECK(far.depth_measured);  // the coverage criterion fails: the depth is measured
   CHECK(far.depth_samples[0] > 0);
   CHECK(far.depth_samples[1] > 0);
   CHECK(far.depth_samples[2] == 0);
@@ -384,6 +385,22 @@ TEST_CASE("far samples are counted where they lie along the muscle and in depth"
   CHECK(j.at("along_far").at(9).get<int>() == far.along_far[9]);
   CHECK(j.at("depth_samples").size() == 4);
   CHECK(report.to_table().find("far samples (> 2 spacings)") != std::string::npos);
+}
+
+TEST_CASE("the far samples' depth is measured only where the coverage criterion fails", "[fibres][check]") {
+  const TriangleMesh box = long_box(4);
+  Polylines fibres = straight_lattice(4, 11);
+  const CheckReport report = check_fibres(fibres, box, areas_for(box, fibres));
+  REQUIRE(report.coverage.p95 <= report.thresholds.max_coverage_p95);
+  const FarSamples& far = report.coverage.far;
+  CHECK_FALSE(far.depth_measured);
+  int along = 0, depth = 0;
+  for (int b = 0; b < FarSamples::kAlongBins; ++b) along += far.along_samples[static_cast<std::size_t>(b)];
+  for (int b = 0; b < FarSamples::kDepthBins; ++b) depth += far.depth_samples[static_cast<std::size_t>(b)];
+  CHECK(along == report.coverage.samples);  // the breakdown along the muscle is always there
+  CHECK(depth == 0);
+  CHECK_FALSE(report.to_json().at("coverage").at("far").at("depth_measured").get<bool>());
+  CHECK(report.to_table().find("by depth") == std::string::npos);
 }
 
 TEST_CASE("lengths and the largest turning angle", "[fibres][check]") {
