@@ -1027,7 +1027,7 @@ nlohmann::json attempt_json(const std::string& change, const std::vector<std::st
 
 }  // namespace
 
-SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes) {
+SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes, bool landmark_strips) {
   const auto shows = [&](const char* mode) { return std::find(modes.begin(), modes.end(), mode) != modes.end(); };
   SecondTry out{"", first};
   const auto add = [&](const char* change) { out.change += (out.change.empty() ? "" : "+") + std::string(change); };
@@ -1043,9 +1043,12 @@ SecondTry second_try(const DecomposeOptions& first, const std::vector<std::strin
   // to them, hooked end joints or segments out (the whole check): faces as deep as the first ring,
   // so that the end layers of cells curve round the muscle's ends and the ends cast from them
   // spread over their areas.
+  // On a landmark strip along the muscle's side gathered ends are not that shadow: the layer next
+  // to the face is a whole cross-section and its cast reaches the strip only near its centre,
+  // however deep the face (fibres/strip_cast.h), so they alone call no second try.
   constexpr double kDeepFace = 1.0;  // deeper than the first ring, the end layer would turn over
-  if ((shows("gathered_ends") || shows("sharp_joints") || shows("segments_out")) &&
-      first.placement.max_face_depth < kDeepFace) {
+  const bool ends_call = shows("gathered_ends") && !landmark_strips;
+  if ((ends_call || shows("sharp_joints") || shows("segments_out")) && first.placement.max_face_depth < kDeepFace) {
     out.options.placement.max_face_depth = kDeepFace;
     add("deep_faces");
   }
@@ -1131,7 +1134,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
       if (modes.empty() && best.report.quality.pass) modes = whole_check_modes(best.report.quality);
       if (options.tries.second_try && !modes.empty()) {
-        SecondTry second = second_try(options, modes);
+        SecondTry second = second_try(options, modes, landmarks.given() && options.strip.join);
         if (second.change.empty())
           attempts.back()["second_try"] = "none: no change addresses " + nlohmann::json(modes).dump();
         else

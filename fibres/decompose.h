@@ -229,14 +229,17 @@ struct Decomposition {
 /// `first` with the rings placed by meridian for "folds" and "uneven_layers" (with band_by_length,
 /// where the first placed them by levels), edge cells of 0.5 for "coverage" (where the first's
 /// were wider), and for the whole check's modes (whole_check_modes(): "gathered_ends",
-/// "sharp_joints", "segments_out") faces as deep as the first ring (placement.max_face_depth 1).
-/// `change` names what changed ("meridian_rings", "narrow_edge_cells", "deep_faces", joined by
-/// "+"), empty when nothing applies: then there is no second try.
+/// "sharp_joints", "segments_out") faces as deep as the first ring (placement.max_face_depth 1),
+/// except for "gathered_ends" alone where the areas are `landmark_strips` (landmark areas joined
+/// into strips along the muscle, fibres/landmark_strip.h): deeper faces do not spread the ends
+/// over such a strip. `change` names what changed ("meridian_rings", "narrow_edge_cells",
+/// "deep_faces", joined by "+"), empty when nothing applies: then there is no second try.
 struct SecondTry {
   std::string change;
   DecomposeOptions options;
 };
-SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes);
+SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes,
+                     bool landmark_strips = false);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
 /// inverted cells, a larger inside fraction, a lower coverage p95 (the first of equals is kept).

@@ -10,7 +10,8 @@
 ///                  in from the surface                            -> edge cells of 0.5
 /// and where the first passes decompose's check but not the whole check (CheckOptions' defaults):
 ///   gathered_ends  an area's ends cover less than the ends criterion asks: cast along the end
-///                  axis, they gather in the shadow of the layer next to them
+///                  axis, they gather in the shadow of the layer next to them (on automatic
+///                  areas only: on a landmark strip deeper faces do not spread them)
 ///   sharp_joints   a joint turns by more than the smooth criterion allows (hooked ends)
 ///   segments_out   a segment leaves the muscle                     -> faces as deep as the first
 ///                  ring: the end layers of cells curve round the muscle's ends, and the ends

@@ -662,6 +662,10 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   CHECK(deep.options.placement.max_face_depth == 1.0);
   CHECK_NOTHROW(deep.options.validate());
   CHECK(second_try(deep.options, {"sharp_joints"}).change.empty());
+  // On landmark strips gathered ends alone call no second try; a hooked joint still does.
+  CHECK(second_try(options, {"gathered_ends"}, true).change.empty());
+  CHECK(second_try(options, {"gathered_ends", "sharp_joints"}, true).change == "deep_faces");
+  CHECK(second_try(options, {"segments_out"}, true).change == "deep_faces");
 
   // A capsule passes at once: no second try.
   const TriangleMesh mesh = capsule();
