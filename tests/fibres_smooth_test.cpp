@@ -81,7 +81,7 @@ TEST_CASE("a zigzag joint straightens below the threshold, joints under it stay,
   CHECK(at(lattice, 2, 2, 8) == Vec3(-0.75, -0.75, 4.8));
 }
 
-TEST_CASE("smoothing with no steps leaves the lattice as it is; bad options are refused", "[fibres][smooth]") {
+TEST_CASE("smoothing with no steps leaves the lattice as it is, bad options are refused", "[fibres][smooth]") {
   const TriangleMesh cube = make_cube(kSize, 1);
   const SurfaceQuery query(cube);
   springs::Lattice lattice = straight_lattice();

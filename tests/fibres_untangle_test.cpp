@@ -126,7 +126,7 @@ TEST_CASE("untangle: an impossible problem is reported, not hidden", "[fibres][u
   for (const Vec3& p : g.positions) CHECK(p.allFinite());
 }
 
-TEST_CASE("untangle: uncounted tetrahedra do not stop it; anchors pull", "[fibres][untangle]") {
+TEST_CASE("untangle: uncounted tetrahedra do not stop it, anchors pull", "[fibres][untangle]") {
   Grid g = make_grid(5);
   const int q = g.index(2, 2, 2);
   const Vec3 start = g.positions[static_cast<std::size_t>(q)];

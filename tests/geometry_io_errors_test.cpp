@@ -164,7 +164,7 @@ TEST_CASE("error unknown_format: extension or content", "[geometry][io][errors]"
   require_soup_error(dir.file("grid.vtk"), ErrorCode::unknown_format, "line 4");
 }
 
-TEST_CASE("error truncated: binary STL, PLY, VTK cut short; ASCII with fewer elements than declared",
+TEST_CASE("error truncated: binary STL, PLY, VTK cut short, ASCII with fewer elements than declared",
           "[geometry][io][errors]") {
   TempDir dir;
   SECTION("binary STL, including one whose header starts with 'solid'") {

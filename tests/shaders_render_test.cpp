@@ -300,7 +300,7 @@ TEST_CASE("fascicle render draws raw corpus muscles as read", "[gpu][program][co
   }
 }
 
-TEST_CASE("fascicle render writes a PNG; missing input, bad options exit with their codes", "[gpu][program]") {
+TEST_CASE("fascicle render writes a PNG, missing input, bad options exit with their codes", "[gpu][program]") {
   if (!std::filesystem::exists(test::program())) {
     WARN("skipped: " << test::program() << " is not built");
     return;
