@@ -5,6 +5,7 @@
 #include "app/commands.h"
 #include "app/report_file.h"
 #include "fibres/decompose_mesh.h"
+#include "fibres/decompose_options_json.h"
 #include "fibres/muscle_presets.h"
 #include "fibres/fibre_field.h"
 #include "repair/tetrahedralize.h"
@@ -21,6 +22,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,12 +38,14 @@ struct DecomposeArgs {
   const CLI::App* command = nullptr;  // for which options were given explicitly
   std::string kind = "parallel", solver = "static", backend = "cpu", sphere_method = "tutte";
   std::string muscle;  // --muscle: a preset by anatomical name (fibres/muscle_presets.h)
+  std::string tuning;  // --tuning: a JSON file of settings (fibres/decompose_options_json.h)
   int model = 6;
   bool keep_failed = false, check_options = false;
   DecomposeOptions options;
 };
 
-void run_decompose(const DecomposeArgs& args) {
+// The options of the command line (defaults where none is given), not yet validated.
+DecomposeOptions options_of(const DecomposeArgs& args) {
   DecomposeOptions options = args.options;
   // --quality sets the options its level names, except those given explicitly.
   {
@@ -65,6 +69,24 @@ void run_decompose(const DecomposeArgs& args) {
   options.sphere.method = sphere_method_from_string(args.sphere_method);
   options.backend = args.backend;
   options.rest = parse_rest_shape(args.rest);
+  return options;
+}
+
+// A --tuning file: a JSON object of settings (fibres/decompose_options_json.h).
+nlohmann::json read_tuning(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(ErrorCode::file_missing, path + ": cannot open the tuning file");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(ErrorCode::malformed, path + ": the tuning file is not JSON (" + e.what() + ")");
+  }
+}
+
+void run_decompose(const DecomposeArgs& args) {
+  DecomposeOptions options = options_of(args);
+  // The file's settings, except those the command line changes (a setting given there wins).
+  if (!args.tuning.empty()) options = tune_options(options_of(DecomposeArgs{}), options, read_tuning(args.tuning));
   options.validate();
   if (args.origin.empty() != args.insertion.empty())
     throw OptionError("--origin and --insertion go together (give both, or neither for automatic areas)");
@@ -115,7 +137,8 @@ void run_decompose(const DecomposeArgs& args) {
     landmarks.origin_source = args.origin;
     landmarks.insertion_source = args.insertion;
   }
-  nlohmann::json report = {{"input_file", args.input}, {"output_file", args.output}};
+  nlohmann::json report = {
+      {"input_file", args.input}, {"output_file", args.output}, {"options", decompose_options_json(options)}};
   if (!args.muscle.empty()) {
     const MusclePreset& preset = muscle_preset(args.muscle);
     report["muscle"] = {{"name", preset.name},
@@ -382,6 +405,9 @@ void add_decompose_command(CLI::App& app) {
                   "Untangling: farthest a freed fibre end may lie from its attachment area, as a share of the muscle "
                   "length (0: within the end shift of its cast place)")
       ->capture_default_str();
+  cmd->add_option("--tuning", args->tuning,
+                  "JSON file of settings, nested as the report's \"options\" (any of them, for experts; a report's "
+                  "options repeat its run); options given on the command line win");
   cmd->add_flag("--check-options", args->check_options,
                 "Check the options and the output paths, then exit without reading the input (0: all good)");
   cmd->add_flag("--keep-failed", args->keep_failed,
@@ -396,7 +422,7 @@ void add_decompose_command(CLI::App& app) {
       cmd,
       {{"Inputs and outputs",
         {"input", "--output", "--report", "--write-repaired", "--architecture", "--fe-mesh", "--keep-failed",
-         "--check-options"}},
+         "--check-options", "--tuning"}},
        {"Attachment areas", {"--origin", "--insertion", "--end-fraction", "--max-landmark-distance"}},
        {"Template and fibres",
         {"--muscle", "--template", "--pennation", "--fibres", "--resolution", "--length-unit", "--specific-tension"}},

@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
+#include <vector>
 
 using namespace fascicle;
 namespace fs = std::filesystem;
@@ -181,7 +183,7 @@ TEST_CASE("repair and convert succeed on good input with a complete report", "[a
   }
 }
 
-TEST_CASE("decompose --muscle takes its preset's template and pennation; explicit options win", "[app]") {
+TEST_CASE("decompose --muscle takes its preset's template and pennation, explicit options win", "[app]") {
   test::TempDir dir;
   REQUIRE(run(dir, "sample --kind muscle --clean -o '" + dir.file("muscle.off") + "'").code == 0);
   const std::string input = "--quiet decompose '" + dir.file("muscle.off") + "' -o '" + dir.file("f.vtk") + "'";
@@ -249,4 +251,54 @@ TEST_CASE("decompose and its bench take the edge cells' width", "[app]") {
   const nlohmann::json b = nlohmann::json::parse(bin);
   CHECK(b.at("speed").at(0).at("edge_cell") == 0.5);
   CHECK(b.at("speed").at(0).at("quality").at("pass") == true);
+}
+
+TEST_CASE("decompose --tuning sets any setting from a JSON file, the command line wins, a report repeats its run",
+          "[app]") {
+  test::TempDir dir;
+  REQUIRE(run(dir, "sample --kind capsule -o '" + dir.file("capsule.off") + "'").code == 0);
+  const std::string input = "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file("f.vtk") + "'";
+  // Bad files: one line, the exit code of their kind, no output.
+  write_text(dir.file("typo.json"), R"({"placement": {"max_face_deph": 0.2}})");
+  write_text(dir.file("broken.json"), R"({"fibres": )");
+  write_text(dir.file("range.json"), R"({"fibres": 2})");
+  for (const auto& [file, code, needle] :
+       std::vector<std::tuple<std::string, ErrorCode, std::string>>{
+           {"typo.json", ErrorCode::invalid_option, "placement.max_face_deph is not a setting"},
+           {"broken.json", ErrorCode::malformed, "not JSON"},
+           {"range.json", ErrorCode::invalid_option, "fibres"},
+           {"absent.json", ErrorCode::file_missing, "absent.json"}}) {
+    INFO(file);
+    const Run r = run(dir, input + " --tuning '" + dir.file(file) + "'");
+    CHECK(r.code == exit_code(code));
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(r.err.find(needle) != std::string::npos);
+    CHECK_FALSE(fs::exists(dir.file("f.vtk")));
+  }
+  const auto report_of = [&](const std::string& extra, const std::string& fibres) {
+    const Run r = run(dir, "--quiet decompose '" + dir.file("capsule.off") + "' -o '" + dir.file(fibres) +
+                               "' --report '" + dir.file("r.json") + "' " + extra);
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+    std::ifstream in(dir.file("r.json"));
+    return nlohmann::json::parse(in);
+  };
+  write_text(dir.file("t.json"), R"({"fibres": 36, "resolution": 9, "placement": {"max_face_depth": 0.2}})");
+  const nlohmann::json tuned = report_of("--tuning '" + dir.file("t.json") + "'", "a.vtk");
+  CHECK(tuned.at("options").at("fibres") == 36);
+  CHECK(tuned.at("options").at("resolution") == 9);
+  CHECK(tuned.at("options").at("placement").at("max_face_depth") == 0.2);
+  CHECK(tuned.at("lattice").at("fibres") == 36);
+  CHECK(tuned.at("attempts").at(0).at("max_face_depth") == 0.2);
+  const nlohmann::json both = report_of("--tuning '" + dir.file("t.json") + "' --fibres 49", "b.vtk");
+  CHECK(both.at("options").at("fibres") == 49);
+  CHECK(both.at("options").at("resolution") == 9);
+  // The report's options as a tuning file repeat the run, byte for byte.
+  std::ofstream(dir.file("again.json")) << both.at("options").dump();
+  report_of("--tuning '" + dir.file("again.json") + "'", "c.vtk");
+  std::ifstream b(dir.file("b.vtk"), std::ios::binary), c(dir.file("c.vtk"), std::ios::binary);
+  const std::string bytes_b((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+  const std::string bytes_c((std::istreambuf_iterator<char>(c)), std::istreambuf_iterator<char>());
+  CHECK(!bytes_b.empty());
+  CHECK(bytes_b == bytes_c);
 }
