@@ -223,7 +223,8 @@ std::string file_bytes(const std::string& path) {
 }
 
 // What a muscle's result depends on: its input's bytes, its landmark files', the decompose
-// options forwarded (a tuning file's content with them) and the fibre format. A report made from another request is redone.
+// options forwarded (a tuning file's content with them) and the fibre format. A report made
+// from another request is redone.
 std::string request_fingerprint(const Muscle& m, const BatchArgs& args) {
   std::uint64_t h = fnv1a(file_bytes(m.input));
   for (const std::string& path : {m.origin, m.insertion})
@@ -231,7 +232,8 @@ std::string request_fingerprint(const Muscle& m, const BatchArgs& args) {
   for (std::size_t i = 0; i < args.forwarded.size(); ++i) {
     h = fnv1a(args.forwarded[i] + '\0', h);
     // A tuning file counts by its content: an edited file is another request.
-    if (args.forwarded[i] == "--tuning" && i + 1 < args.forwarded.size()) h = fnv1a(file_bytes(args.forwarded[i + 1]), h);
+    if (args.forwarded[i] == "--tuning" && i + 1 < args.forwarded.size())
+      h = fnv1a(file_bytes(args.forwarded[i + 1]), h);
   }
   h = fnv1a("format=" + args.format, h);
   h = fnv1a(args.keep_failed ? "keep-failed" : "", h);

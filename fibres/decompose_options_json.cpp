@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 #include <string>
 #include <type_traits>
@@ -27,42 +28,49 @@ using springs::TemplateKind;
 template <class E>
 using NameTable = std::vector<std::pair<E, const char*>>;
 
+// The table of `all` named by the project's own name function, so that the names stay the
+// command line's.
+template <class E, class Name>
+NameTable<E> table_of(std::initializer_list<E> all, Name name) {
+  NameTable<E> out;
+  for (E e : all) out.emplace_back(e, name(e));
+  return out;
+}
+
 const NameTable<SphereMethod>& names(SphereMethod) {
-  static const NameTable<SphereMethod> t = {{SphereMethod::tutte, "tutte"}, {SphereMethod::relax, "relax"}};
+  static const NameTable<SphereMethod> t =
+      table_of({SphereMethod::tutte, SphereMethod::relax}, [](SphereMethod e) { return to_string(e); });
   return t;
 }
 const NameTable<SphereStart>& names(SphereStart) {
-  static const NameTable<SphereStart> t = {{SphereStart::automatic, "automatic"},
-                                           {SphereStart::tube, "tube"},
-                                           {SphereStart::progressive, "progressive"},
-                                           {SphereStart::stereographic, "stereographic"}};
+  static const NameTable<SphereStart> t = table_of(
+      {SphereStart::automatic, SphereStart::tube, SphereStart::progressive, SphereStart::stereographic},
+      [](SphereStart e) { return to_string(e); });
   return t;
 }
 const NameTable<TemplateKind>& names(TemplateKind) {
-  static const NameTable<TemplateKind> t = [] {
-    NameTable<TemplateKind> out;
-    for (TemplateKind k : {TemplateKind::parallel, TemplateKind::pennate, TemplateKind::curved, TemplateKind::fanned,
-                           TemplateKind::rectus, TemplateKind::unipennate, TemplateKind::bipennate})
-      out.emplace_back(k, springs::template_name(k));
-    return out;
-  }();
+  static const NameTable<TemplateKind> t =
+      table_of({TemplateKind::parallel, TemplateKind::pennate, TemplateKind::curved, TemplateKind::fanned,
+                TemplateKind::rectus, TemplateKind::unipennate, TemplateKind::bipennate},
+               springs::template_name);
   return t;
 }
 const NameTable<RestShape>& names(RestShape) {
-  static const NameTable<RestShape> t = {
-      {RestShape::zero, "zero"}, {RestShape::tension, "tension"}, {RestShape::template_, "template"}};
+  static const NameTable<RestShape> t =
+      table_of({RestShape::zero, RestShape::tension, RestShape::template_}, rest_shape_name);
   return t;
 }
 const NameTable<SolverKind>& names(SolverKind) {
-  static const NameTable<SolverKind> t = {{SolverKind::verlet, "verlet"}, {SolverKind::static_equilibrium, "static"}};
+  static const NameTable<SolverKind> t =
+      table_of({SolverKind::verlet, SolverKind::static_equilibrium}, springs::solver_name);
   return t;
 }
 const NameTable<springs::Backend>& names(springs::Backend) {
-  static const NameTable<springs::Backend> t = {{springs::Backend::automatic, "auto"},
-                                                {springs::Backend::structured, "structured"},
-                                                {springs::Backend::general, "general"}};
+  static const NameTable<springs::Backend> t = table_of(
+      {springs::Backend::automatic, springs::Backend::structured, springs::Backend::general}, springs::backend_name);
   return t;
 }
+// These three have no name function of their own.
 const NameTable<DampingMode>& names(DampingMode) {
   static const NameTable<DampingMode> t = {
       {DampingMode::estimate, "estimate"}, {DampingMode::critical, "critical"}, {DampingMode::value, "value"}};
@@ -432,9 +440,7 @@ DecomposeOptions tune_options(const DecomposeOptions& reference, const Decompose
                               const nlohmann::json& tuning) {
   nlohmann::json tuned = decompose_options_json(apply_tuning(reference, tuning));
   overlay_changes(tuned, decompose_options_json(reference), decompose_options_json(given));
-  DecomposeOptions out = apply_tuning(given, tuned);
-  out.progress = given.progress;
-  return out;
+  return apply_tuning(given, tuned);  // every setting; `given`'s progress stays
 }
 
 }  // namespace fascicle

@@ -58,11 +58,7 @@ FarSamples far_samples(const std::vector<Vec3>& samples, const std::vector<doubl
   const double extent = hi > lo ? hi - lo : 1.0;
   // The depth of every sample is a closest-point query each, most of the check's time: it is
   // only measured where the coverage criterion fails, which is what the breakdown explains.
-  std::vector<double> depth(samples.size(), 0.0);
-  if (with_depth) {
-    const std::vector<SurfacePoint> nearest = query.closest_points(samples);
-    for (std::size_t i = 0; i < samples.size(); ++i) depth[i] = nearest[i].distance / spacing;
-  }
+  const std::vector<SurfacePoint> nearest = with_depth ? query.closest_points(samples) : std::vector<SurfacePoint>{};
   long far_count = 0;
   for (std::size_t i = 0; i < samples.size(); ++i) {
     const bool is_far = distances[i] / spacing > threshold;
@@ -74,7 +70,8 @@ FarSamples far_samples(const std::vector<Vec3>& samples, const std::vector<doubl
     far.along_far[a] += is_far ? 1 : 0;
     if (!with_depth) continue;
     std::size_t d = 0;
-    while (d + 1 < static_cast<std::size_t>(FarSamples::kDepthBins) && depth[i] >= FarSamples::depth_edges[d]) ++d;
+    const double depth = nearest[i].distance / spacing;
+    while (d + 1 < static_cast<std::size_t>(FarSamples::kDepthBins) && depth >= FarSamples::depth_edges[d]) ++d;
     ++far.depth_samples[d];
     far.depth_far[d] += is_far ? 1 : 0;
   }
