@@ -1,4 +1,5 @@
 // fascicle render MESH [FIBRES] -o view.png [--views N] [--size WxH] [--background white|black]
+//                 [--origin POINTS] [--insertion POINTS]
 // fascicle render --template parallel|pennate|curved|fanned|rectus -o t.png
 // Pictures through headless OpenGL (shaders/render_view.h): the muscle translucent with its
 // fibres coloured from origin to insertion, from N views around its long axis, tiled into one
@@ -8,6 +9,8 @@
 #include "geometry/atomic_file.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_io.h"
+#include "geometry/mesh_stats.h"
+#include "geometry/read_points.h"
 #ifdef FASCICLE_HAVE_SHADERS
 #include "shaders/gl_context.h"
 #include "shaders/render_png.h"
@@ -30,7 +33,7 @@ namespace fascicle::app {
 namespace {
 
 struct RenderArgs {
-  std::string mesh, fibres, output, size, background = "white", template_name;
+  std::string mesh, fibres, output, size, background = "white", template_name, origin, insertion;
   std::optional<int> views;  // default: 4 for a muscle, 2 for a template
   int gl_device = -1;
   std::optional<double> elevation, azimuth;
@@ -57,6 +60,8 @@ void run_render(const RenderArgs& args) {
   if (!is_template && args.mesh.empty()) throw Error(ErrorCode::usage, "render: give a MESH file or --template NAME");
   if (lower_extension(args.output) != "png")
     throw InputError(ErrorCode::unknown_format, args.output + ": the picture must be a .png file");
+  if (is_template && (!args.origin.empty() || !args.insertion.empty()))
+    throw OptionError("--origin and --insertion mark a muscle's landmarks; a --template picture has none");
 #ifdef FASCICLE_HAVE_SHADERS
   shaders::RenderOptions options;
   options.views = args.views ? *args.views : 4;
@@ -93,9 +98,24 @@ void run_render(const RenderArgs& args) {
       check_not_same_file(args.fibres, args.output);
       fibres = read_polylines(args.fibres);
     }
+    // Landmarks, read before the picture is drawn so that a bad file costs no rendering.
+    std::vector<Vec3> origin, insertion;
+    for (const std::string* path : {&args.origin, &args.insertion})
+      if (!path->empty()) check_not_same_file(*path, args.output);
+    if (!args.origin.empty()) origin = read_points(args.origin);
+    if (!args.insertion.empty()) insertion = read_points(args.insertion);
     scene = shaders::muscle_scene(soup, fibres ? &*fibres : nullptr, args.mesh);
+    // Markers a hundredth of the muscle's bounding-box diagonal long each way: about the radius
+    // within which decompose counts a surface point as on an area.
+    const double size = 0.01 * bounding_box(scene.surface_points).diagonal();
+    shaders::add_markers(scene, origin, shaders::origin_colour(), size);
+    shaders::add_markers(scene, insertion, shaders::insertion_colour(), size);
     what = args.mesh + " (" + std::to_string(scene.surface_triangles.size()) + " triangles" +
-           (fibres ? ", " + std::to_string(fibres->lines.size()) + " fibres" : std::string()) + ")";
+           (fibres ? ", " + std::to_string(fibres->lines.size()) + " fibres" : std::string()) +
+           (origin.size() + insertion.size() > 0
+                ? ", " + std::to_string(origin.size() + insertion.size()) + " landmarks"
+                : std::string()) +
+           ")";
   }
 
   shaders::GlContextOptions context_options;
@@ -134,6 +154,10 @@ void add_render_command(CLI::App& app) {
                   "Tilt of the views towards the axis, degrees (default 0; 22 "
                   "for --template)");
   cmd->add_option("--azimuth", args->azimuth, "Turn of the first view around the axis, degrees (default 0)");
+  cmd->add_option("--origin", args->origin,
+                  "Mark these origin landmark points in red (x y z rows, CSV, 3D Slicer .fcsv / .mrk.json, as "
+                  "decompose reads them)");
+  cmd->add_option("--insertion", args->insertion, "Mark these insertion landmark points in green");
   cmd->add_option("--line-scale", args->line_scale, "Multiplies the line widths (default 1; 1.5 for --template)");
   cmd->add_option("--gl-device", args->gl_device, "EGL device index (-1: first hardware device, else software)")
       ->capture_default_str();

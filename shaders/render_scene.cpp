@@ -123,6 +123,19 @@ double hue_degrees(std::uint8_t r, std::uint8_t g, std::uint8_t b) {
 
 Rgba muscle_colour() { return Rgba{0.86f, 0.40f, 0.36f, 0.26f}; }
 
+Rgba origin_colour() { return Rgba{0.90f, 0.12f, 0.10f, 1.0f}; }
+
+Rgba insertion_colour() { return Rgba{0.10f, 0.72f, 0.18f, 1.0f}; }
+
+void add_markers(RenderScene& scene, const std::vector<Vec3>& points, const Rgba& colour, double size,
+                 float width_px) {
+  for (const Vec3& p : points)
+    for (int axis = 0; axis < 3; ++axis) {
+      const Vec3 d = size * Vec3::Unit(axis);
+      scene.lines.push_back(SceneLine{{p - d, p + d}, {colour, colour}, width_px});
+    }
+}
+
 void add_fibres(RenderScene& scene, const Polylines& lines, float width_px) {
   Vec3 first = Vec3::Zero(), last = Vec3::Zero();
   std::size_t count = 0;
@@ -197,8 +210,12 @@ RenderScene template_scene(springs::TemplateKind kind, int nr, int ns, int point
       scene.triangle_colours.push_back(colour);
     }
   };
-  add_area(springs::origin_area(kind), Rgba{0.90f, 0.12f, 0.10f, 0.45f});
-  add_area(springs::insertion_area(kind), Rgba{0.10f, 0.72f, 0.18f, 0.45f});
+  auto translucent = [](Rgba c) {
+    c.a = 0.45f;
+    return c;
+  };
+  add_area(springs::origin_area(kind), translucent(origin_colour()));
+  add_area(springs::insertion_area(kind), translucent(insertion_colour()));
   // Fibres.
   Polylines fibres;
   for (int j = 0; j < ns; ++j)

@@ -68,6 +68,16 @@ double hue_degrees(std::uint8_t r, std::uint8_t g, std::uint8_t b);
 /// The colour of the muscle surface (a light flesh tone, translucent).
 Rgba muscle_colour();
 
+/// The colours of the attachment areas, opaque: origin red, insertion green (the template
+/// pictures draw their areas in these hues, translucent).
+Rgba origin_colour();
+Rgba insertion_colour();
+
+/// Appends a marker for each of `points` (landmarks): three lines of half-length `size` (scene
+/// units) through it along x, y and z, in `colour`, `width_px` wide at the default view.
+void add_markers(RenderScene& scene, const std::vector<Vec3>& points, const Rgba& colour, double size,
+                 float width_px = 3.0f);
+
 /// Appends `lines` to the scene, each coloured along its arc length by fibre_colour (t = 0 at
 /// the first point, the origin, t = 1 at the last, the insertion; index fraction when a line
 /// has zero length). Lines with fewer than 2 points are skipped. Sets the axis ends to the mean

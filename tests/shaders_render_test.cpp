@@ -362,4 +362,54 @@ TEST_CASE("fascicle render writes a PNG, missing input, bad options exit with th
   CHECK(green > 8000);
 }
 
+TEST_CASE("fascicle render marks landmark points: origin red and insertion green", "[gpu][program]") {
+  if (!std::filesystem::exists(test::program())) {
+    WARN("skipped: " << test::program() << " is not built");
+    return;
+  }
+  test::TempDir dir;
+  const std::string mesh = dir.file("capsule.off"), out = dir.file("view.png");
+  write_triangle_mesh(mesh, make_capsule(kLength, kRadius, 32));
+  // Rows of landmarks on the capsule's side near each end (x = -30 .. -20 and 20 .. 30).
+  std::ofstream(dir.file("origin.xyz")) << "-30 0 12\n-25 0 12\n-20 0 12\n-30 0 -12\n-20 0 -12\n";
+  std::ofstream(dir.file("insertion.xyz")) << "20 12 0\n25 12 0\n30 12 0\n20 -12 0\n30 -12 0\n";
+  const std::string fascicle = test::program() + " -q render " + mesh + " --views 1 --size 400x300 ";
+  // Saturated red and green pixels in each half of the picture (the translucent muscle is a pale
+  // blend, left out by the saturation test).
+  auto census = [](const Image& image) {
+    std::array<int, 4> counts{};  // red left, red right, green left, green right
+    for (int y = 0; y < image.height; ++y)
+      for (int x = 0; x < image.width; ++x) {
+        const auto p = image.pixel(x, y);
+        const int hi = std::max({p[0], p[1], p[2]}), lo = std::min({p[0], p[1], p[2]});
+        if (hi - lo < 100) continue;
+        const double h = hue_of(p);
+        const int side = x < image.width / 2 ? 0 : 1;
+        if (h < 15.0 || h > 345.0) ++counts[static_cast<std::size_t>(side)];
+        if (h > 100.0 && h < 140.0) ++counts[static_cast<std::size_t>(2 + side)];
+      }
+    return counts;
+  };
+  REQUIRE(test::run_command(fascicle + "-o " + out) == 0);
+  const auto bare = census(read_png(out));
+  CHECK(bare[0] + bare[1] + bare[2] + bare[3] == 0);
+  REQUIRE(test::run_command(fascicle + "-o " + out + " --origin " + dir.file("origin.xyz") + " --insertion " +
+                            dir.file("insertion.xyz")) == 0);
+  const auto marked = census(read_png(out));
+  INFO("red left " << marked[0] << " right " << marked[1] << ", green left " << marked[2] << " right " << marked[3]);
+  // Without fibres nothing says which end goes left, so the test asks only for each colour on
+  // one side and the two on opposite sides.
+  CHECK(marked[0] + marked[1] > 20);
+  CHECK(marked[2] + marked[3] > 20);
+  CHECK(std::min(marked[0], marked[1]) == 0);
+  CHECK(std::min(marked[2], marked[3]) == 0);
+  CHECK((marked[0] > 0) != (marked[2] > 0));
+
+  const std::string fresh = dir.file("fresh.png");
+  CHECK(test::run_command(fascicle + "-o " + fresh + " --origin " + dir.file("missing.xyz") + " 2>/dev/null") == 3);
+  CHECK(test::run_command(test::program() + " -q render --template parallel -o " + fresh + " --origin " +
+                          dir.file("origin.xyz") + " 2>/dev/null") == 18);
+  CHECK(!std::filesystem::exists(fresh));
+}
+
 #endif  // FASCICLE_HAVE_SHADERS
