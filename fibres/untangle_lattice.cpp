@@ -700,9 +700,10 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     attempt(free_ends, free_ring, contain);
     if (free_ends) free_result = system.positions;
     runs.push_back({{"attempt", name}});
+    const std::size_t marker = runs.size() - 1;  // finish() may append the runs after its pins
     long pinned = 0;
     const long n = finish(pinned);
-    runs.back()["finished"] = n;
+    runs[marker]["finished"] = n;
     if (kept.empty() || n < inverted_left) {
       inverted_left = n;
       best = system.positions;
@@ -749,9 +750,10 @@ LatticeUntangleReport untangle_lattice(const springs::Lattice& lattice, springs:
     budget = options.iterations;
     attempt(false, false, everywhere, true);
     runs.push_back({{"attempt", "segments"}});
+    const std::size_t marker = runs.size() - 1;
     long pinned = 0;
     const long n = finish(pinned);
-    runs.back()["finished"] = n;
+    runs[marker]["finished"] = n;
     const long leaving = leaving_count(), crossing = crossing_segment_count(lattice, system, query, *segments);
     if (n <= inverted_left && crossing <= report.crossing_before && leaving < report.leaving_before) {
       if (unheld) {
