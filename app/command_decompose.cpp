@@ -302,10 +302,11 @@ void add_decompose_command(CLI::App& app) {
                   "Landmark areas: the face centre is the region point farthest from the other area among those at "
                   "least this share of the deepest point's distance from the region's border (1: the deepest)")
       ->capture_default_str();
-  cmd->add_option(
-         "--corner-twist", o.placement.corner_twist_deg,
-         "Degrees from the muscle's broad axis to the lattice's r axis (45: lattice corners on the thin edges)")
-      ->capture_default_str();
+  cmd->add_option_function<double>(
+      "--corner-twist",
+      [&o](double degrees) { o.placement.corner_twist_deg = o.placement.edge_corner_twist_deg = degrees; },
+      "Degrees from the muscle's broad axis to the lattice's r axis, in [-180, 180] (default 0 with automatic areas, "
+      "sides on the thin edges; 45 with landmark areas or unipennate and bipennate, corners there)");
   cmd->add_option("--even-perimeter", o.placement.even_perimeter,
                   "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
                   "sphere map's azimuths (false)")

@@ -601,8 +601,11 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   const springs::Lattice& lattice = prepared.lattice;
   // On a simplified surface the placed points move to the muscle's closest points (the
   // simplification's error, a small part of a lattice cell).
+  // The corner twist of these areas and this template (PlacementOptions::twist_for()).
+  PlacementOptions placing = options.placement;
+  placing.corner_twist_deg = options.placement.twist_for(areas.automatic && !springs::crosses_lattice(options.kind));
   Placement placement = place_template(sphere.simplified ? *sphere.simplified : muscle, map.positions, locator, areas,
-                                       lattice, options.placement);
+                                       lattice, placing);
   if (sphere.simplified)
     for (SurfacePoint& p : placement.points)
       if (p.face >= 0) p = query.closest_point(p.position);
@@ -997,10 +1000,10 @@ bool free_ring_tried(const DecomposeReport& r) {
 
 // The start of an entry of the report's `attempts`: what the try changed and why.
 nlohmann::json attempt_header(const std::string& change, const std::vector<std::string>& modes,
-                              const DecomposeOptions& options) {
+                              const DecomposeOptions& options, bool landmarks) {
   return {{"change", change},
           {"failure_modes", modes},
-          {"corner_twist_deg", options.placement.corner_twist_deg},
+          {"corner_twist_deg", options.placement.twist_for(!landmarks && !springs::crosses_lattice(options.kind))},
           {"landmark_strip", options.strip.join},
           {"meridian_rings", options.placement.meridian_rings},
           {"edge_cell", options.edge_cell},
@@ -1009,9 +1012,9 @@ nlohmann::json attempt_header(const std::string& change, const std::vector<std::
 
 // One entry of the report's `attempts`: what the try changed and how its check came out.
 nlohmann::json attempt_json(const std::string& change, const std::vector<std::string>& modes,
-                            const DecomposeOptions& options, const DecomposeReport& r) {
+                            const DecomposeOptions& options, const DecomposeReport& r, bool landmarks) {
   const CheckReport& q = r.quality;
-  nlohmann::json j = attempt_header(change, modes, options);
+  nlohmann::json j = attempt_header(change, modes, options, landmarks);
   j["status"] = r.status;
   j["failed"] = q.failed;
   j["inside_fraction"] = q.inside_fraction;
@@ -1027,7 +1030,8 @@ nlohmann::json attempt_json(const std::string& change, const std::vector<std::st
 
 }  // namespace
 
-SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes, bool landmark_strips) {
+SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes, bool landmarks) {
+  const bool landmark_strips = landmarks && first.strip.join;
   const auto shows = [&](const char* mode) { return std::find(modes.begin(), modes.end(), mode) != modes.end(); };
   SecondTry out{"", first};
   const auto add = [&](const char* change) { out.change += (out.change.empty() ? "" : "+") + std::string(change); };
@@ -1035,7 +1039,15 @@ SecondTry second_try(const DecomposeOptions& first, const std::vector<std::strin
     out.options.placement.meridian_rings = true;
     add("meridian_rings");
   }
-  if (shows("coverage") && first.edge_cell > 0.5) {
+  // A coverage gap is first the lattice's sides on a flat muscle's thin edges, whose middles the
+  // settled interior cannot follow into an acute edge: corners on the edges; with the corners
+  // there already, narrower edge cells.
+  const bool lines = !landmarks && !springs::crosses_lattice(first.kind);
+  const bool corners_on_edges = std::abs(std::remainder(first.placement.twist_for(lines), 90.0)) == 45.0;
+  if (shows("coverage") && !corners_on_edges) {
+    (lines ? out.options.placement.corner_twist_deg : out.options.placement.edge_corner_twist_deg) = 45.0;
+    add("corners_on_edges");
+  } else if (shows("coverage") && first.edge_cell > 0.5) {
     out.options.edge_cell = 0.5;
     add("narrow_edge_cells");
   }
@@ -1121,20 +1133,20 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       }
     } catch (const Error& e) {
       if (i == 0) throw;
-      nlohmann::json failed = attempt_header(t.change, t.modes, t.options);
+      nlohmann::json failed = attempt_header(t.change, t.modes, t.options, landmarks.given());
       failed["status"] = "error";
       failed["error"] = e.what();
       attempts.push_back(std::move(failed));
       continue;
     }
-    attempts.push_back(attempt_json(t.change, t.modes, t.options, d->report));
+    attempts.push_back(attempt_json(t.change, t.modes, t.options, d->report, landmarks.given()));
     seconds += d->report.seconds;
     if (i == 0) {
       best = std::move(*d);
       std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
       if (modes.empty() && best.report.quality.pass) modes = whole_check_modes(best.report.quality);
       if (options.tries.second_try && !modes.empty()) {
-        SecondTry second = second_try(options, modes, landmarks.given() && options.strip.join);
+        SecondTry second = second_try(options, modes, landmarks.given());
         if (second.change.empty())
           attempts.back()["second_try"] = "none: no change addresses " + nlohmann::json(modes).dump();
         else

@@ -227,19 +227,22 @@ struct Decomposition {
 
 /// The second try after a first whose check shows `modes` (failure_modes(), fibres/try_policy.h):
 /// `first` with the rings placed by meridian for "folds" and "uneven_layers" (with band_by_length,
-/// where the first placed them by levels), edge cells of 0.5 for "coverage" (where the first's
-/// were wider), and for the whole check's modes (whole_check_modes(): "gathered_ends",
-/// "sharp_joints", "segments_out") faces as deep as the first ring (placement.max_face_depth 1),
-/// except for "gathered_ends" alone where the areas are `landmark_strips` (landmark areas joined
+/// where the first placed them by levels); for "coverage" the lattice's corners on the thin edges
+/// (the corner twist for the areas, PlacementOptions::twist_for(), set to 45 degrees) where the
+/// first's were not there, else edge cells of 0.5 (where the first's were wider); and for the
+/// whole check's modes (whole_check_modes(): "gathered_ends", "sharp_joints", "segments_out")
+/// faces as deep as the first ring (placement.max_face_depth 1), except for "gathered_ends" alone
+/// where the areas are landmark strips (`landmarks`, with first.strip.join: landmark areas joined
 /// into strips along the muscle, fibres/landmark_strip.h): deeper faces do not spread the ends
-/// over such a strip. `change` names what changed ("meridian_rings", "narrow_edge_cells",
-/// "deep_faces", joined by "+"), empty when nothing applies: then there is no second try.
+/// over such a strip. `change` names what changed ("meridian_rings", "corners_on_edges",
+/// "narrow_edge_cells", "deep_faces", joined by "+"), empty when nothing applies: then there is
+/// no second try.
 struct SecondTry {
   std::string change;
   DecomposeOptions options;
 };
 SecondTry second_try(const DecomposeOptions& first, const std::vector<std::string>& modes,
-                     bool landmark_strips = false);
+                     bool landmarks = false);
 
 /// Whether check result `a` is better than `b`: passing first, then fewer failed criteria, fewer
 /// inverted cells, a larger inside fraction, a lower coverage p95 (the first of equals is kept).

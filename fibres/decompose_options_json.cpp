@@ -143,6 +143,7 @@ void fields(PlacementOptions& o, V& v) {
   v("bend_step_deg", o.bend_step_deg);
   v("meridian_rings", o.meridian_rings);
   v("corner_twist_deg", o.corner_twist_deg);
+  v("edge_corner_twist_deg", o.edge_corner_twist_deg);
   v("even_perimeter", o.even_perimeter);
   v("landmark_centre_keep", o.landmark_centre_keep);
 }

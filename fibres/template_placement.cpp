@@ -264,6 +264,8 @@ void PlacementOptions::validate() const {
     throw OptionError("bend_step_deg: must be in [0, 180], got " + std::to_string(bend_step_deg));
   if (!(corner_twist_deg >= -180.0 && corner_twist_deg <= 180.0))
     throw OptionError("corner_twist_deg: must be in [-180, 180], got " + std::to_string(corner_twist_deg));
+  if (!(edge_corner_twist_deg >= -180.0 && edge_corner_twist_deg <= 180.0))
+    throw OptionError("edge_corner_twist_deg: must be in [-180, 180], got " + std::to_string(edge_corner_twist_deg));
 }
 
 nlohmann::json PlacementReport::to_json() const {

@@ -74,9 +74,20 @@ struct PlacementOptions {
   /// With band_by_length: each ring point at the same share of its own meridian's length (true) or
   /// one sphere-map level per ring (false) (default false; the second try for folds and uneven layers, fibres/try_policy.h).
   bool meridian_rings = false;
-  /// Azimuth (degrees) of the template's r axis from the muscle's second principal axis, [-180, 180]
-  /// (default 45: lattice corners on the broad axis; with 0 the lattice shuns a flat muscle's thin edge).
-  double corner_twist_deg = 45.0;
+  /// Automatic areas: azimuth (degrees) of the template's r axis from the muscle's second principal
+  /// axis, [-180, 180] (default 0: the lattice's sides face the ends of the cross-section's broad
+  /// axis, which folds the fewest cells where a section is concave; a coverage gap at a flat
+  /// muscle's thin edges calls a second try with 45, corners there, fibres/try_policy.h).
+  double corner_twist_deg = 0.0;
+  /// Landmark areas, and templates whose fibres cross the lattice (their aponeuroses are the broad
+  /// faces between the corners): the same azimuth, [-180, 180] (default 45: corners on the thin
+  /// edges; with landmark areas the sides there lose decompose passes, docs/decompose.md step 4).
+  double edge_corner_twist_deg = 45.0;
+  /// The corner twist of a placement: corner_twist_deg where the fibres are the lattice's lines
+  /// between automatic areas (`lines_between_automatic_areas`), else edge_corner_twist_deg.
+  double twist_for(bool lines_between_automatic_areas) const {
+    return lines_between_automatic_areas ? corner_twist_deg : edge_corner_twist_deg;
+  }
   /// Ring points at even shares of each cross-section's perimeter (true) or at the azimuth plus the
   /// twist (false) (default false).
   bool even_perimeter = false;

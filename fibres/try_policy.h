@@ -6,8 +6,10 @@
 ///                  the sphere map, crowd where the muscle bends   -> rings placed by meridian
 ///   uneven_layers  a layer of fibre segments over even_layers_ratio times the median (the rings
 ///                  skipped a stretch of muscle)                    -> rings placed by meridian
-///   coverage       coverage p95 over the check's limit: the outermost fibres lie a whole spacing
-///                  in from the surface                            -> edge cells of 0.5
+///   coverage       coverage p95 over the check's limit: the outermost fibres stay away from a
+///                  flat muscle's acute edge, where a lattice side's middle lies -> corners on
+///                  the edges (corner twist 45); with them there already, the outermost fibres
+///                  lie a whole spacing in from the surface           -> edge cells of 0.5
 /// and where the first passes decompose's check but not the whole check (CheckOptions' defaults):
 ///   gathered_ends  an area's ends cover less than the ends criterion asks: cast along the end
 ///                  axis, they gather in the shadow of the layer next to them (on automatic

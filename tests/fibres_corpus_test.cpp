@@ -97,14 +97,20 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
       REQUIRE(!modes.empty());
       const auto shows = [&](const char* mode) { return std::find(modes.begin(), modes.end(), mode) != modes.end(); };
       CHECK(meridian == (shows("folds") || shows("uneven_layers")));
-      CHECK((attempts[1]["edge_cell"] == 0.5) == shows("coverage"));
+      // Automatic areas: a coverage gap puts the corners on the thin edges, nothing else does.
+      CHECK(attempts[0]["corner_twist_deg"] == 0.0);
+      CHECK((attempts[1]["corner_twist_deg"] == 45.0) == shows("coverage"));
+      CHECK(attempts[1]["edge_cell"] == attempts[0]["edge_cell"]);
       if (shows("uneven_layers")) CHECK(attempts[0]["layer_ratio"].get<double>() > 2.5);
     }
     if (meridian) {
       ++meridian_tries;
       // The meridian rings space the layers evenly.
       CHECK(attempts[1]["layer_ratio"].get<double>() < 2.0);
-    } else {
+    } else if (r["kept_attempt"].get<int>() == 0) {
+      // A first try kept with layers over the policy's ratio would have called the meridian try;
+      // a kept deep-faces or corners try is held to the ceiling below (the opendihu tracer's
+      // deep-faces try, kept for passing the whole check, has a layer of about 2.8 times the median).
       CHECK(q["steps"]["layer_ratio"].get<double>() <= 2.5);
     }
     if (entry.path().filename() == "LHDL_R_M090_Psoas_smooth.415.report.json") CHECK(meridian);
@@ -134,6 +140,6 @@ TEST_CASE("corpus muscles decompose with every fibre inside and ends on their ar
   CHECK(unfolded >= 46);
   CHECK(covered >= 46);
   // The whole check: the goal is every muscle; the floor is today's count less one muscle's room.
-  CHECK(whole >= 39);
+  CHECK(whole >= 43);
   CHECK(inverted <= 40);
 }

@@ -480,13 +480,16 @@ TEST_CASE("fibre ends placed on a share of the automatic areas are checked again
 
 TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   // The capsule flattened to a 5 : 1 cross-section (semi-axes 3 and 0.6), like a strap or
-  // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0) the settled
-  // lattice stays away from the edges; with a lattice corner on each (the default, 45 degrees)
-  // the fibres reach them (docs/decompose.md, step 4).
+  // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0, the first
+  // try's) the settled lattice stays away from the edges; with a lattice corner on each (45
+  // degrees, the second try's for a coverage gap) the fibres reach them (docs/decompose.md,
+  // steps 4 and 9).
   TriangleMesh mesh = capsule();
   for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
   DecomposeOptions options;
   options.untangle.iterations = 2000;
+  options.tries.second_try = false;
+  options.placement.corner_twist_deg = 45.0;
   const Decomposition corner = decompose_repaired(mesh, Landmarks{}, options);
   options.placement.corner_twist_deg = 0.0;
   const Decomposition side = decompose_repaired(mesh, Landmarks{}, options);
@@ -498,6 +501,17 @@ TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   CHECK(a.coverage.p95 <= 2.0);
   CHECK(a.coverage.far.fraction < 0.05);
   CHECK(b.coverage.p95 > a.coverage.p95);
+  // With both tries the first's coverage gap calls the second with the corners on the edges,
+  // which is the run above with them there.
+  CHECK(b.coverage.p95 > 2.0);
+  options.tries.second_try = true;
+  const Decomposition both = decompose_repaired(mesh, Landmarks{}, options);
+  const nlohmann::json attempts = both.report.to_json()["attempts"];
+  INFO(attempts.dump());
+  REQUIRE(attempts.size() == 2);
+  CHECK(attempts[1]["change"] == "corners_on_edges");
+  CHECK(both.report.kept_attempt == 1);
+  CHECK(both.report.quality.coverage.p95 == a.coverage.p95);
 }
 
 namespace {
@@ -628,19 +642,29 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   CheckReport attachment;
   attachment.failed = {"attachment"};  // no second try addresses it
   CHECK(failure_modes(attachment, TryPolicy{}).empty());
-  // The second try's options: meridian rings for folds and uneven layers, narrow edge cells for
-  // a coverage gap; nothing where the first had them already.
+  // The second try's options: meridian rings for folds and uneven layers; for a coverage gap the
+  // lattice's corners on the thin edges, and where they are there already narrow edge cells;
+  // nothing where the first had them already.
   DecomposeOptions options;
+  REQUIRE(options.placement.corner_twist_deg == 0.0);
   const SecondTry both = second_try(options, {"folds", "coverage"});
-  CHECK(both.change == "meridian_rings+narrow_edge_cells");
+  CHECK(both.change == "meridian_rings+corners_on_edges");
   CHECK(both.options.placement.meridian_rings);
-  CHECK(both.options.edge_cell == 0.5);
+  CHECK(both.options.placement.corner_twist_deg == 45.0);
+  CHECK(both.options.edge_cell == options.edge_cell);
   CHECK_NOTHROW(both.options.validate());
   CHECK(second_try(options, {"uneven_layers"}).change == "meridian_rings");
   CHECK(second_try(options, {"uneven_layers"}).options.edge_cell == options.edge_cell);
-  CHECK(second_try(options, {"coverage"}).change == "narrow_edge_cells");
+  CHECK(second_try(options, {"coverage"}).change == "corners_on_edges");
   CHECK_FALSE(second_try(options, {"coverage"}).options.placement.meridian_rings);
-  CHECK(second_try(both.options, {"folds", "coverage"}).change.empty());
+  const SecondTry narrow_cells = second_try(both.options, {"folds", "coverage"});
+  CHECK(narrow_cells.change == "narrow_edge_cells");
+  CHECK(narrow_cells.options.edge_cell == 0.5);
+  CHECK(narrow_cells.options.placement.corner_twist_deg == 45.0);
+  DecomposeOptions turned = options;
+  turned.placement.corner_twist_deg = -135.0;  // corners on the edges too (the square's symmetry)
+  CHECK(second_try(turned, {"coverage"}).change == "narrow_edge_cells");
+  CHECK(second_try(narrow_cells.options, {"folds", "coverage"}).change.empty());
   DecomposeOptions by_area = options;
   by_area.placement.band_by_length = false;  // meridian rings need rings by length
   CHECK(second_try(by_area, {"folds"}).change.empty());
@@ -673,8 +697,8 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   REQUIRE(once.report.quality.pass);
   CHECK(once.report.attempts.size() == 1);
   CHECK(once.report.to_json()["attempts"].size() == 1);
-  // A coverage limit no lattice meets: the second try with narrow edge cells, both fail, the
-  // report says which it kept (the better one) and why the second ran.
+  // A coverage limit no lattice meets: the second try with the corners on the edges, both fail,
+  // the report says which it kept (the better one) and why the second ran.
   options.check.max_coverage_p95 = 1e-6;
   const Decomposition twice = decompose_repaired(mesh, Landmarks{}, options);
   CHECK_FALSE(twice.report.quality.pass);
@@ -684,9 +708,11 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   CHECK(attempts[0]["change"] == "none");
   CHECK(attempts[0]["status"] == "failed");
   CHECK(attempts[0]["edge_cell"] == 1.0);
-  CHECK(attempts[1]["change"] == "narrow_edge_cells");
+  CHECK(attempts[0]["corner_twist_deg"] == 0.0);
+  CHECK(attempts[1]["change"] == "corners_on_edges");
   CHECK(attempts[1]["failure_modes"] == nlohmann::json{"coverage"});
-  CHECK(attempts[1]["edge_cell"] == 0.5);
+  CHECK(attempts[1]["corner_twist_deg"] == 45.0);
+  CHECK(attempts[1]["edge_cell"] == 1.0);
   CHECK(attempts[1]["status"] == "failed");
   const int kept = twice.report.kept_attempt;
   REQUIRE((kept == 0 || kept == 1));
@@ -695,6 +721,7 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   CHECK(twice.report.placement.is_object());
   // A failure mode with nothing left to change: one try, and the report says so.
   DecomposeOptions narrow = options;
+  narrow.placement.corner_twist_deg = 45.0;
   narrow.edge_cell = 0.5;
   const Decomposition no_change = decompose_repaired(mesh, Landmarks{}, narrow);
   REQUIRE(no_change.report.attempts.size() == 1);

@@ -75,7 +75,8 @@ TEST_CASE("landmark areas: at most two tries, both with the strips", "[fibres][d
   const nlohmann::json& attempts = given.report.attempts;
   INFO(attempts.dump());
   CHECK(given.report.status == "failed");
-  // The coverage gap calls the second try with narrow edge cells; no twist, no disks.
+  // Landmark areas place the corners on the thin edges from the first try, so the coverage gap
+  // calls the second try with narrow edge cells.
   REQUIRE(attempts.size() == 2);
   CHECK(attempts[1]["change"] == "narrow_edge_cells");
   for (const nlohmann::json& attempt : attempts) {

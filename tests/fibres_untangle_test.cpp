@@ -565,6 +565,7 @@ TEST_CASE("untangle in the decomposition: a real muscle whose settle folds cells
       read_polygon_soup(test::data_dir() + "/muscles/visible-human/VHM_Left/VHM_Left_Muscle_RectusFemoris_smooth.stl");
   DecomposeOptions options;
   options.tries.second_try = false;  // this case is about the untangling of one placement
+  options.placement.corner_twist_deg = 45.0;  // the placement this case was found with
   options.untangle_cells = false;
   const Decomposition folded = decompose(soup, {}, options);
   REQUIRE(folded.report.quality.inverted_cells > 0);
@@ -673,7 +674,7 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
       read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
   DecomposeOptions options;
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
-                                             // default twist of 45 degrees needs no pins here)
+                                             // twist of 45 degrees needs no pins here)
   options.tries.second_try = false;          // this case is about the untangling of one placement
   options.cast_rim = false;                  // the face rims as when the case was found (cast, they
                                              // leave nothing outside to pin here)
@@ -702,6 +703,7 @@ TEST_CASE("untangle in the decomposition: containment rounds that make progress 
       read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M081_GluteusMaximus_smooth.312.vtk");
   DecomposeOptions options;
   options.tries.second_try = false;                     // this case is about the untangling of one placement
+  options.placement.corner_twist_deg = 45.0;            // the placement this case was found with
   options.contact_segments = false;                     // (nor the segment attempt: points outside only)
   REQUIRE(options.untangle.contact_stall_rounds == 0);  // the default: every containment round
   const Decomposition all_rounds = decompose(soup, {}, options);
@@ -784,6 +786,7 @@ TEST_CASE("untangle in the decomposition: the containment energy in the free-rin
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
   options.tries.second_try = false;  // this case is about the untangling of one placement
+  options.placement.corner_twist_deg = 45.0;  // the placement this case was found with
   // The areas as their bands' vertices (no points across the triangles), whose gaps shrink the
   // cast end faces: the case whose free-ring attempt leaves folds.
   options.attachments.max_point_spacing = 1.0;
@@ -831,6 +834,7 @@ TEST_CASE("untangle in the decomposition: segment rounds that move no point end 
   const PolygonSoup soup = read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M090_Psoas_smooth.415.vtk");
   DecomposeOptions options;
   options.tries.second_try = false;  // this case is about the untangling of one placement
+  options.placement.corner_twist_deg = 45.0;  // the placement this case was found with
   const Decomposition d = decompose(soup, {}, options);
   const nlohmann::json u = d.report.to_json()["untangle"];
   REQUIRE(u["segments_needed"].get<bool>());
