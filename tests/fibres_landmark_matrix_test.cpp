@@ -120,10 +120,11 @@ TEST_CASE("landmark matrix: LHDL iliacus, gluteus maximus and gluteus medius wit
     const CheckReport& q = run.result.report.quality;
     const nlohmann::json& attempts = run.report["attempts"];
     INFO(c.name << " " << springs::template_name(c.kind) << ": " << attempts.dump());
-    // Every try is listed (at most two), the first with the default twist; the kept one is the best.
+    // Every try is listed (at most two), the first with the landmark areas' default twist (corners
+    // on the edges); the kept one is the best.
     REQUIRE(attempts.size() >= 1);
     REQUIRE(attempts.size() <= 2);
-    CHECK(attempts[0]["corner_twist_deg"].get<double>() == DecomposeOptions{}.placement.corner_twist_deg);
+    CHECK(attempts[0]["corner_twist_deg"].get<double>() == DecomposeOptions{}.placement.edge_corner_twist_deg);
     const auto kept = static_cast<std::size_t>(run.report["kept_attempt"].get<int>());
     REQUIRE(kept < attempts.size());
     CHECK(attempts[kept]["coverage_p95"].get<double>() == q.coverage.p95);
@@ -220,7 +221,7 @@ TEST_CASE(
     options.edge_cell = 0.5;
     options.tries.second_try = false;
     options.strip.join = pair.strip;
-    options.placement.corner_twist_deg = pair.twist;
+    options.placement.edge_corner_twist_deg = pair.twist;  // the twist of landmark areas
     options.cast_by_azimuth = false;  // the landmark disks' cast as when the case was found (one factor)
     REQUIRE(options.untangle.contact_rounds == 16);  // the defaults
     REQUIRE(options.untangle.fold_stall_needs_outside_stall);
