@@ -480,6 +480,12 @@ nlohmann::json DecomposeReport::to_json() const {
 
 namespace {
 
+// Whether the fibres are the lattice's lines between automatic areas (no landmark files, and a
+// template whose fibres do not cross the lattice): the case PlacementOptions::twist_for() tells apart.
+bool lines_between_automatic_areas(bool automatic_areas, springs::TemplateKind kind) {
+  return automatic_areas && !springs::crosses_lattice(kind);
+}
+
 // The muscle's sphere map and its point locator, made once for both tries (the second does not
 // change the sphere options).
 struct MuscleSphere {
@@ -599,13 +605,14 @@ Decomposition decompose_attempt(const TriangleMesh& muscle, const SurfaceQuery& 
   FASCICLE_CHECK(same_lattice(lattice_options_of(options), prepared.options),
                  "the attempt's lattice options are the prepared lattice's");
   const springs::Lattice& lattice = prepared.lattice;
-  // On a simplified surface the placed points move to the muscle's closest points (the
-  // simplification's error, a small part of a lattice cell).
   // The corner twist of these areas and this template (PlacementOptions::twist_for()).
   PlacementOptions placing = options.placement;
-  placing.corner_twist_deg = options.placement.twist_for(areas.automatic && !springs::crosses_lattice(options.kind));
+  placing.corner_twist_deg =
+      options.placement.twist_for(lines_between_automatic_areas(areas.automatic, options.kind));
   Placement placement = place_template(sphere.simplified ? *sphere.simplified : muscle, map.positions, locator, areas,
                                        lattice, placing);
+  // On a simplified surface the placed points move to the muscle's closest points (the
+  // simplification's error, a small part of a lattice cell).
   if (sphere.simplified)
     for (SurfacePoint& p : placement.points)
       if (p.face >= 0) p = query.closest_point(p.position);
@@ -1003,7 +1010,7 @@ nlohmann::json attempt_header(const std::string& change, const std::vector<std::
                               const DecomposeOptions& options, bool landmarks) {
   return {{"change", change},
           {"failure_modes", modes},
-          {"corner_twist_deg", options.placement.twist_for(!landmarks && !springs::crosses_lattice(options.kind))},
+          {"corner_twist_deg", options.placement.twist_for(lines_between_automatic_areas(!landmarks, options.kind))},
           {"landmark_strip", options.strip.join},
           {"meridian_rings", options.placement.meridian_rings},
           {"edge_cell", options.edge_cell},
@@ -1042,7 +1049,7 @@ SecondTry second_try(const DecomposeOptions& first, const std::vector<std::strin
   // A coverage gap is first the lattice's sides on a flat muscle's thin edges, whose middles the
   // settled interior cannot follow into an acute edge: corners on the edges; with the corners
   // there already, narrower edge cells.
-  const bool lines = !landmarks && !springs::crosses_lattice(first.kind);
+  const bool lines = lines_between_automatic_areas(!landmarks, first.kind);
   const bool corners_on_edges = std::abs(std::remainder(first.placement.twist_for(lines), 90.0)) == 45.0;
   if (shows("coverage") && !corners_on_edges) {
     (lines ? out.options.placement.corner_twist_deg : out.options.placement.edge_corner_twist_deg) = 45.0;
