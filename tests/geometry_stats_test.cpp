@@ -1,4 +1,9 @@
 #include "geometry/mesh_stats.h"
+#include "geometry/cross_section.h"
+#include "geometry/primitives.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
 
 #include <catch2/catch.hpp>
 
@@ -61,4 +66,42 @@ TEST_CASE("principal axes of no point are the identity at the origin", "[geometr
   CHECK(axes.mean == Vec3::Zero());
   CHECK(axes.axes == Eigen::Matrix3d::Identity());
   CHECK(axes.variances == Vec3::Zero());
+}
+
+namespace {
+// An elliptic cylinder along z, semi-axes a and b, `n` points a ring, closed by fans.
+TriangleMesh elliptic_cylinder(double a, double b, double length, int n = 256) {
+  std::vector<std::vector<Vec3>> rings;
+  for (int k = 0; k <= 20; ++k) {
+    std::vector<Vec3> ring;
+    for (int j = 0; j < n; ++j) {
+      const double phi = 2.0 * 3.14159265358979323846 * j / n;
+      ring.emplace_back(a * std::cos(phi), b * std::sin(phi), length * k / 20.0);
+    }
+    rings.push_back(ring);
+  }
+  return make_closed_tube(rings, Vec3(0, 0, -0.01 * length), Vec3(0, 0, 1.01 * length));
+}
+}  // namespace
+
+TEST_CASE("cross-section aspect of elliptic and round cylinders", "[geometry]") {
+  // The area's second moments of an ellipse of semi-axes a, b are a^2/4 and b^2/4: aspect a / b,
+  // whichever way the mesh turns and faces, at a CT-like offset.
+  TriangleMesh flat = elliptic_cylinder(3.0, 1.0, 20.0);
+  CrossSectionShape shape = cross_section_shape(flat);
+  REQUIRE(shape.aspects.size() == 7);
+  for (double a : shape.aspects) CHECK(a == Approx(3.0).epsilon(1e-3));
+  CHECK(shape.median_aspect == Approx(3.0).epsilon(1e-3));
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  for (Vec3& p : flat.positions) p = turn * p + Vec3(250.0, -1300.0, 900.0);
+  CHECK(cross_section_shape(flat).median_aspect == Approx(3.0).epsilon(1e-3));
+  for (Triangle& t : flat.triangles) std::swap(t[1], t[2]);
+  CHECK(cross_section_shape(flat).median_aspect == Approx(3.0).epsilon(1e-3));
+  CHECK(cross_section_shape(elliptic_cylinder(2.0, 2.0, 20.0)).median_aspect == Approx(1.0).epsilon(1e-3));
+  // Planes where asked; none for an empty mesh.
+  CrossSectionOptions one;
+  one.slices = 1;
+  CHECK(cross_section_shape(elliptic_cylinder(4.0, 1.0, 30.0), one).aspects.size() == 1);
+  CHECK(cross_section_shape(TriangleMesh{}).aspects.empty());
+  CHECK(cross_section_shape(TriangleMesh{}).median_aspect == 0.0);
 }
