@@ -305,8 +305,9 @@ void add_decompose_command(CLI::App& app) {
   cmd->add_option_function<double>(
       "--corner-twist",
       [&o](double degrees) { o.placement.corner_twist_deg = o.placement.edge_corner_twist_deg = degrees; },
-      "Degrees from the muscle's broad axis to the lattice's r axis, in [-180, 180] (default 0 with automatic areas, "
-      "sides on the thin edges; 45 with landmark areas or unipennate and bipennate, corners there)");
+      "Degrees from the muscle's broad axis to the lattice's r axis, in [-180, 180] (default 0 with automatic areas "
+      "on a round muscle, sides on the thin edges; 45 on a flat one, whose cross-sections are at least twice as broad "
+      "as thick, with landmark areas or unipennate and bipennate, corners there)");
   cmd->add_option("--even-perimeter", o.placement.even_perimeter,
                   "Lattice surface points at even shares of each cross-section's perimeter (true) or at the "
                   "sphere map's azimuths (false)")

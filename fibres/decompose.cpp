@@ -1,9 +1,9 @@
 #include "fibres/decompose.h"
 
-
 #include "fibres/azimuth_cast.h"
 #include "fibres/fibre_grid.h"
 #include "fibres/strip_cast.h"
+#include "geometry/cross_section.h"
 #include "geometry/errors.h"
 #include "geometry/mesh_stats.h"
 #include "morph/sphere_locator.h"
@@ -460,6 +460,7 @@ nlohmann::json DecomposeReport::to_json() const {
   j["repair"] = repair;
   j["sphere"] = sphere;
   j["attachments"] = attachments;
+  j["cross_section"] = cross_section;
   j["placement"] = placement;
   j["lattice"] = lattice;
   j["settle"] = settle;
@@ -1122,7 +1123,15 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
     std::vector<std::string> modes;  // the first try's failure modes that called this one
     DecomposeOptions options;
   };
-  std::vector<Try> tries{{"none", {}, options}};
+  // A flat muscle's first try has the corners on its thin edges (PlacementOptions::flat_section_aspect):
+  // the sides' middles there leave a coverage gap that only a second try would close.
+  const CrossSectionShape section = cross_section_shape(muscle);
+  DecomposeOptions first = options;
+  const bool flat = lines_between_automatic_areas(!landmarks.given(), options.kind) &&
+                    options.placement.flat_section_aspect > 0.0 &&
+                    section.median_aspect >= options.placement.flat_section_aspect;
+  if (flat) first.placement.corner_twist_deg = options.placement.edge_corner_twist_deg;
+  std::vector<Try> tries{{"none", {}, first}};
   nlohmann::json attempts = nlohmann::json::array();
   Decomposition best;
   int kept = 0;
@@ -1153,7 +1162,7 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
       std::vector<std::string> modes = failure_modes(best.report.quality, options.tries);
       if (modes.empty() && best.report.quality.pass) modes = whole_check_modes(best.report.quality);
       if (options.tries.second_try && !modes.empty()) {
-        SecondTry second = second_try(options, modes, landmarks.given());
+        SecondTry second = second_try(first, modes, landmarks.given());
         if (second.change.empty())
           attempts.back()["second_try"] = "none: no change addresses " + nlohmann::json(modes).dump();
         else
@@ -1181,6 +1190,10 @@ Decomposition decompose_repaired(const TriangleMesh& muscle, const Landmarks& la
   }
   best.report.attempts = std::move(attempts);
   best.report.kept_attempt = kept;
+  best.report.cross_section = {{"median_aspect", section.median_aspect},
+                               {"aspects", section.aspects},
+                               {"flat_section_aspect", options.placement.flat_section_aspect},
+                               {"flat", flat}};
   best.report.query_seconds = query_seconds;
   best.report.sphere_seconds = sphere.seconds;
   best.report.seconds = setup_seconds + seconds;

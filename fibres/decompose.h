@@ -199,6 +199,9 @@ struct DecomposeReport {
   std::string status;   ///< "ok" or "failed" (the quality check failed)
   std::string failure;  ///< why, when failed
   nlohmann::json repair, sphere, attachments, placement, lattice, settle, containment, untangle;
+  /// The repaired muscle's cross-sections (geometry/cross_section.h: median_aspect, aspects) and
+  /// whether they made the first try put the corners on the edges (`flat`, PlacementOptions::flat_section_aspect).
+  nlohmann::json cross_section;
   /// Crossing templates only (else null): how the pennate fibres were drawn (PennateReport) and the
   /// check of the lattice they were drawn through (`map`: inverted_cells, inside_fraction).
   nlohmann::json pennate;

@@ -144,6 +144,7 @@ void fields(PlacementOptions& o, V& v) {
   v("meridian_rings", o.meridian_rings);
   v("corner_twist_deg", o.corner_twist_deg);
   v("edge_corner_twist_deg", o.edge_corner_twist_deg);
+  v("flat_section_aspect", o.flat_section_aspect);
   v("even_perimeter", o.even_perimeter);
   v("landmark_centre_keep", o.landmark_centre_keep);
 }

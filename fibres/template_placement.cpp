@@ -266,6 +266,8 @@ void PlacementOptions::validate() const {
     throw OptionError("corner_twist_deg: must be in [-180, 180], got " + std::to_string(corner_twist_deg));
   if (!(edge_corner_twist_deg >= -180.0 && edge_corner_twist_deg <= 180.0))
     throw OptionError("edge_corner_twist_deg: must be in [-180, 180], got " + std::to_string(edge_corner_twist_deg));
+  if (!(flat_section_aspect == 0.0 || flat_section_aspect >= 1.0))
+    throw OptionError("flat_section_aspect: must be 0 or >= 1, got " + std::to_string(flat_section_aspect));
 }
 
 nlohmann::json PlacementReport::to_json() const {

@@ -83,6 +83,11 @@ struct PlacementOptions {
   /// faces between the corners): the same azimuth, [-180, 180] (default 45: corners on the thin
   /// edges; with landmark areas the sides there lose decompose passes, docs/decompose.md step 4).
   double edge_corner_twist_deg = 45.0;
+  /// Automatic areas: a muscle whose cross-sections are at least this many times as broad as
+  /// thick (median over its middle, geometry/cross_section.h) gets edge_corner_twist_deg from the
+  /// first try: the sides' middles cannot follow a flat muscle's acute edges, 0 or >= 1 (default
+  /// 2; 0: never, the coverage gap's second try then puts the corners there, docs/decompose.md step 4).
+  double flat_section_aspect = 2.0;
   /// The corner twist of a placement: corner_twist_deg where the fibres are the lattice's lines
   /// between automatic areas (`lines_between_automatic_areas`), else edge_corner_twist_deg.
   double twist_for(bool lines_between_automatic_areas) const {

@@ -480,10 +480,10 @@ TEST_CASE("fibre ends placed on a share of the automatic areas are checked again
 
 TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   // The capsule flattened to a 5 : 1 cross-section (semi-axes 3 and 0.6), like a strap or
-  // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0, the first
-  // try's) the settled lattice stays away from the edges; with a lattice corner on each (45
-  // degrees, the second try's for a coverage gap) the fibres reach them (docs/decompose.md,
-  // steps 4 and 9).
+  // a fan. With the middle of a lattice side on each thin edge (corner_twist_deg 0, a round
+  // muscle's first try's) the settled lattice stays away from the edges; with a lattice corner on
+  // each (45 degrees, a flat muscle's first try's, and the second try's for a coverage gap) the
+  // fibres reach them (docs/decompose.md, steps 4 and 9).
   TriangleMesh mesh = capsule();
   for (Vec3& p : mesh.positions) p = Vec3(2.0 * p.x(), 0.4 * p.y(), p.z());
   DecomposeOptions options;
@@ -492,6 +492,7 @@ TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   options.placement.corner_twist_deg = 45.0;
   const Decomposition corner = decompose_repaired(mesh, Landmarks{}, options);
   options.placement.corner_twist_deg = 0.0;
+  options.placement.flat_section_aspect = 0.0;  // the sides on the edges however flat
   const Decomposition side = decompose_repaired(mesh, Landmarks{}, options);
   const CheckReport& a = corner.report.quality;
   const CheckReport& b = side.report.quality;
@@ -501,8 +502,8 @@ TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   CHECK(a.coverage.p95 <= 2.0);
   CHECK(a.coverage.far.fraction < 0.05);
   CHECK(b.coverage.p95 > a.coverage.p95);
-  // With both tries the first's coverage gap calls the second with the corners on the edges,
-  // which is the run above with them there.
+  // With both tries and the sides on the edges, the first's coverage gap calls the second with
+  // the corners there, which is the run above with them there.
   CHECK(b.coverage.p95 > 2.0);
   options.tries.second_try = true;
   const Decomposition both = decompose_repaired(mesh, Landmarks{}, options);
@@ -512,6 +513,18 @@ TEST_CASE("a flat muscle is covered to its thin edges", "[fibres][decompose]") {
   CHECK(attempts[1]["change"] == "corners_on_edges");
   CHECK(both.report.kept_attempt == 1);
   CHECK(both.report.quality.coverage.p95 == a.coverage.p95);
+  // With the default options the cross-sections (aspect 5) are flat: the first try has the
+  // corners on the edges, and it is that run too.
+  DecomposeOptions defaults;
+  defaults.untangle.iterations = 2000;
+  const Decomposition flat = decompose_repaired(mesh, Landmarks{}, defaults);
+  const nlohmann::json report = flat.report.to_json();
+  INFO(report["cross_section"].dump());
+  CHECK(report["cross_section"]["flat"] == true);
+  CHECK(report["cross_section"]["median_aspect"].get<double>() == Approx(5.0).epsilon(0.05));
+  REQUIRE(report["attempts"].size() == 1);
+  CHECK(report["attempts"][0]["corner_twist_deg"] == 45.0);
+  CHECK(flat.report.quality.coverage.p95 == a.coverage.p95);
 }
 
 namespace {

@@ -674,7 +674,8 @@ TEST_CASE("untangle in the decomposition: points fixed just inside at the end do
       read_polygon_soup(test::data_dir() + "/muscles/lhdl/LHDL_R_M082_GluteusMedius_smooth.334.vtk");
   DecomposeOptions options;
   options.placement.corner_twist_deg = 0.0;  // the placement this case was found with (the
-                                             // twist of 45 degrees needs no pins here)
+                                             // twist of 45 degrees needs no pins here), however
+  options.placement.flat_section_aspect = 0.0;  // flat its cross-sections
   options.tries.second_try = false;          // this case is about the untangling of one placement
   options.cast_rim = false;                  // the face rims as when the case was found (cast, they
                                              // leave nothing outside to pin here)
