@@ -1068,7 +1068,8 @@ SecondTry second_try(const DecomposeOptions& first, const std::vector<std::strin
   // however deep the face (fibres/strip_cast.h), so they alone call no second try.
   constexpr double kDeepFace = 1.0;  // deeper than the first ring, the end layer would turn over
   const bool ends_call = shows("gathered_ends") && !landmark_strips;
-  if ((ends_call || shows("sharp_joints") || shows("segments_out")) && first.placement.max_face_depth < kDeepFace) {
+  // A joint inside the fibres (sharp_joints) is a bend of the muscle the end layers do not reach.
+  if ((ends_call || shows("hooked_ends") || shows("segments_out")) && first.placement.max_face_depth < kDeepFace) {
     out.options.placement.max_face_depth = kDeepFace;
     add("deep_faces");
   }

@@ -233,11 +233,12 @@ struct Decomposition {
 /// where the first placed them by levels); for "coverage" the lattice's corners on the thin edges
 /// (the corner twist for the areas, PlacementOptions::twist_for(), set to 45 degrees) where the
 /// first's were not there, else edge cells of 0.5 (where the first's were wider); and for the
-/// whole check's modes (whole_check_modes(): "gathered_ends", "sharp_joints", "segments_out")
-/// faces as deep as the first ring (placement.max_face_depth 1), except for "gathered_ends" alone
+/// whole check's modes (whole_check_modes(): "gathered_ends", "hooked_ends", "segments_out")
+/// faces as deep as the first ring (placement.max_face_depth 1). Except: "gathered_ends" alone
 /// where the areas are landmark strips (`landmarks`, with first.strip.join: landmark areas joined
-/// into strips along the muscle, fibres/landmark_strip.h): deeper faces do not spread the ends
-/// over such a strip. `change` names what changed ("meridian_rings", "corners_on_edges",
+/// into strips along the muscle, fibres/landmark_strip.h), as deeper faces do not spread the ends
+/// over such a strip; and "sharp_joints" (the largest joint inside the fibres), which the end
+/// layers do not reach. `change` names what changed ("meridian_rings", "corners_on_edges",
 /// "narrow_edge_cells", "deep_faces", joined by "+"), empty when nothing applies: then there is
 /// no second try.
 struct SecondTry {

@@ -532,6 +532,7 @@ CheckReport check_fibres(const Polylines& fibres, const TriangleMesh& muscle, co
         turning.max_deg = angle;
         turning.fibre = static_cast<int>(f);
         turning.joint = joint;
+        turning.max_at_end = joint == first_joint || joint == last_joint;
       }
     }
   }
@@ -723,7 +724,8 @@ nlohmann::json CheckReport::to_json() const {
         {"joints", turning.joints},
         {"over_30", turning.over_30},
         {"over_45", turning.over_45},
-        {"end_joints_over_45", turning.end_joints_over_45}}},
+        {"end_joints_over_45", turning.end_joints_over_45},
+        {"max_at_end", turning.max_at_end}}},
       {"ends",
        {{"origin",
          {{"share", origin_ends.share},

@@ -196,6 +196,7 @@ struct TurningFigures {
   long joints = 0;                ///< joints measured (interior points whose both segments have a length)
   long over_30 = 0, over_45 = 0;  ///< joints turning by more than 30 and 45 degrees
   long end_joints_over_45 = 0;    ///< of those over 45, the first or last joint of a fibre
+  bool max_at_end = false;        ///< the largest is the first or last joint of its fibre (a hooked end)
 };
 
 /// How the fibre ends cover one attachment area (the ends criterion).

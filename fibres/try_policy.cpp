@@ -29,7 +29,7 @@ std::vector<std::string> whole_check_modes(const CheckReport& result) {
   const auto shows = [&](const char* criterion) { return std::find(failed.begin(), failed.end(), criterion) != failed.end(); };
   std::vector<std::string> modes;
   if (shows("ends")) modes.emplace_back("gathered_ends");
-  if (shows("smooth")) modes.emplace_back("sharp_joints");
+  if (shows("smooth")) modes.emplace_back(result.turning.max_at_end ? "hooked_ends" : "sharp_joints");
   if (shows("segments")) modes.emplace_back("segments_out");
   return modes;
 }

@@ -14,10 +14,13 @@
 ///   gathered_ends  an area's ends cover less than the ends criterion asks: cast along the end
 ///                  axis, they gather in the shadow of the layer next to them (on automatic
 ///                  areas only: on a landmark strip deeper faces do not spread them)
-///   sharp_joints   a joint turns by more than the smooth criterion allows (hooked ends)
+///   hooked_ends    a joint turns by more than the smooth criterion allows, the largest at a
+///                  fibre's first or last joint
 ///   segments_out   a segment leaves the muscle                     -> faces as deep as the first
 ///                  ring: the end layers of cells curve round the muscle's ends, and the ends
 ///                  cast from them spread over their areas
+///   sharp_joints   the same, the largest inside the fibre (a bend of the muscle that 15 points
+///                  cannot follow): deeper faces do not reach it  -> no second try
 /// decompose_repaired() (fibres/decompose.h) keeps the better of the two (after a first that
 /// fails decompose's check by better_result(); after one that passes it, the second only where it
 /// passes too and fails fewer of the whole check's criteria, or as many and is evener) and names
@@ -45,8 +48,8 @@ struct TryPolicy {
 /// no second try).
 std::vector<std::string> failure_modes(const CheckReport& result, const TryPolicy& policy);
 
-/// The whole check's failure modes of a try's check ("gathered_ends", "sharp_joints",
-/// "segments_out"), judged with CheckOptions' defaults (failed_criteria()).
+/// The whole check's failure modes of a try's check ("gathered_ends", "hooked_ends" or
+/// "sharp_joints", "segments_out"), judged with CheckOptions' defaults (failed_criteria()).
 std::vector<std::string> whole_check_modes(const CheckReport& result);
 
 }  // namespace fascicle

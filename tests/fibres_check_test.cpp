@@ -436,6 +436,7 @@ TEST_CASE("the smooth criterion: the largest turn, where it is, and the joints o
   CHECK(report.turning.over_30 == 1);
   CHECK(report.turning.over_45 == 1);
   CHECK(report.turning.end_joints_over_45 == 0);
+  CHECK_FALSE(report.turning.max_at_end);
   CHECK(has_failed(report, "smooth"));
   CheckOptions loose;
   loose.max_turning_angle_deg = 60.0;
@@ -448,6 +449,8 @@ TEST_CASE("the smooth criterion: the largest turn, where it is, and the joints o
   CHECK(report.turning.fibre == 0);
   CHECK(report.turning.joint == 1);
   CHECK(report.turning.end_joints_over_45 >= 1);
+  CHECK(report.turning.max_at_end);
+  CHECK(report.to_json()["turning"]["max_at_end"] == true);
 }
 
 TEST_CASE("the ends criterion: ends spread over their areas pass, ends gathered into a point fail", "[fibres][check]") {

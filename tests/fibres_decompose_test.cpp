@@ -682,12 +682,15 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   by_area.placement.band_by_length = false;  // meridian rings need rings by length
   CHECK(second_try(by_area, {"folds"}).change.empty());
   // The whole check's modes, for a first try that passes decompose's check: deep faces; nothing
-  // where the first had them already.
+  // where the first had them already, nor for a sharp joint inside the fibres.
   CheckReport whole = passed;
   whole.origin_ends.share = 0.1;
   whole.insertion_ends.share = 0.5;
   whole.turning.max_deg = 60.0;
+  whole.turning.max_at_end = true;
   whole.crossing_segments = 2;
+  CHECK(whole_check_modes(whole) == std::vector<std::string>{"gathered_ends", "hooked_ends", "segments_out"});
+  whole.turning.max_at_end = false;
   CHECK(whole_check_modes(whole) == std::vector<std::string>{"gathered_ends", "sharp_joints", "segments_out"});
   whole.origin_ends.share = 0.3;
   whole.turning.max_deg = 20.0;
@@ -698,10 +701,13 @@ TEST_CASE("a decomposition is tried at most twice, the second time for a named f
   CHECK(deep.change == "deep_faces");
   CHECK(deep.options.placement.max_face_depth == 1.0);
   CHECK_NOTHROW(deep.options.validate());
-  CHECK(second_try(deep.options, {"sharp_joints"}).change.empty());
-  // On landmark strips gathered ends alone call no second try; a hooked joint still does.
+  CHECK(second_try(deep.options, {"hooked_ends"}).change.empty());
+  CHECK(second_try(options, {"hooked_ends"}).change == "deep_faces");
+  CHECK(second_try(options, {"sharp_joints"}).change.empty());
+  // On landmark strips gathered ends alone call no second try; a hooked end still does.
   CHECK(second_try(options, {"gathered_ends"}, true).change.empty());
-  CHECK(second_try(options, {"gathered_ends", "sharp_joints"}, true).change == "deep_faces");
+  CHECK(second_try(options, {"gathered_ends", "sharp_joints"}, true).change.empty());
+  CHECK(second_try(options, {"gathered_ends", "hooked_ends"}, true).change == "deep_faces");
   CHECK(second_try(options, {"segments_out"}, true).change == "deep_faces");
 
   // A capsule passes at once: no second try.
